@@ -1,0 +1,55 @@
+# flask-move-server: the two commands a new user runs are `make demo` and `make test`.
+# Each installs what it needs on a fresh Debian bookworm machine (apt for ROS 1, a venv for the rest).
+
+SHELL := /bin/bash
+SYSTEM_PYTHON ?= /usr/bin/python3
+VENV ?= .venv
+DEBIAN_VENV ?= .venv-debian
+PY := $(VENV)/bin/python
+PYTEST_ARGS ?=
+
+# ROS 1 from Debian (on Ubuntu 20.04 + Noetic these come from /opt/ros/noetic instead).
+ROS_DEBS := python3-rospy python3-rosmaster python3-roslaunch python3-rosgraph python3-actionlib \
+	python3-move-base-msgs python3-tf2-ros python3-geometry-msgs python3-nav-msgs \
+	python3-sensor-msgs python3-visualization-msgs python3-std-msgs python3-venv iproute2
+# Debian's own builds of our Python dependencies: what a Pi gets from apt (make test-debian).
+DEBIAN_PY_DEBS := python3-flask python3-waitress python3-yaml python3-requests python3-zeroconf \
+	python3-serial python3-pytest python3-pytest-timeout python3-hypothesis python3-setuptools
+
+.PHONY: setup test lint pytest test-debian run demo bench clean
+
+setup: $(VENV)/.installed
+
+$(VENV)/.installed: setup.py Makefile
+	./scripts/apt-ensure $(ROS_DEBS)
+	$(SYSTEM_PYTHON) -m venv --system-site-packages $(VENV)
+	$(PY) -m pip install -q --disable-pip-version-check --upgrade --upgrade-strategy eager -e '.[test]'
+	touch $@
+
+lint: setup
+	$(VENV)/bin/ruff check .
+	$(VENV)/bin/vermin --target=3.8- --no-tips --violations --eval-annotations --backport dataclasses \
+		flask_move_server tests bench setup.py
+
+pytest: setup
+	$(PY) -m pytest $(PYTEST_ARGS)
+
+test: lint pytest
+
+$(DEBIAN_VENV)/.installed: setup.py Makefile
+	./scripts/apt-ensure $(ROS_DEBS) $(DEBIAN_PY_DEBS)
+	$(SYSTEM_PYTHON) -m venv --system-site-packages $(DEBIAN_VENV)
+	$(DEBIAN_VENV)/bin/python -m pip install -q --disable-pip-version-check --no-deps --no-build-isolation -e .
+	touch $@
+
+test-debian: $(DEBIAN_VENV)/.installed
+	$(DEBIAN_VENV)/bin/python -m pytest -p no:cacheprovider $(PYTEST_ARGS)
+
+run: setup
+	$(VENV)/bin/flask-move-server --host 127.0.0.1 --waypoints config/waypoints.example.yaml
+
+bench: setup
+	$(PY) -m bench
+
+clean:
+	rm -rf $(VENV) $(DEBIAN_VENV) build *.egg-info .pytest_cache .ruff_cache

@@ -1,0 +1,256 @@
+"""``flask-move-server``: read the config, build every part, serve, stop cleanly.
+
+Wiring and lifecycle only. Parts are started in order and registered on an
+ExitStack, so SIGTERM/SIGINT (or a fatal ROS event) closes them in reverse:
+stop accepting requests, cancel the goal, zero the velocity, stop the motors,
+withdraw the mDNS records, shut the ROS node down. Exit status: 0 after a
+signal, 2 for a bad config, 3 when the ROS master was replaced (systemd
+restarts the server).
+"""
+
+import argparse
+import contextlib
+import logging
+import os
+import signal
+import sys
+
+from flask_move_server import __version__
+from flask_move_server import config as config_mod
+from flask_move_server.errors import ConfigError, WaypointFileError
+
+log = logging.getLogger("flask_move_server")
+
+EXIT_OK, EXIT_FAILURE, EXIT_CONFIG, EXIT_MASTER_REPLACED = 0, 1, 2, 3
+
+
+def parse_args(argv):
+    parser = argparse.ArgumentParser(
+        prog="flask-move-server",
+        description="Serve the HTTP API that sends a ROS 1 robot to named waypoints.",
+    )
+    parser.add_argument("--config", metavar="FILE", help="server config (YAML); default: built-in defaults")
+    parser.add_argument("--waypoints", metavar="FILE", help="waypoints file (default: waypoints.file in the config)")
+    parser.add_argument("--host", help="address to listen on (default 0.0.0.0; 127.0.0.1 with --sim)")
+    parser.add_argument("--port", type=int, help="TCP port (default 5000); 0 picks a free one and logs it")
+    parser.add_argument("--motor-backend", choices=["l298n", "serial", "sim", "none"], help="motor driver")
+    parser.add_argument("--no-mdns", action="store_true", help="do not advertise robot.local over mDNS")
+    parser.add_argument("--insecure", action="store_true", help="allow serving the network without a token")
+    parser.add_argument("--sim", action="store_true", help="run a simulated robot and world (no hardware)")
+    parser.add_argument("--map", metavar="MAP.yaml", help="with --sim: the map_server map to simulate")
+    parser.add_argument("--log-level", default="INFO", choices=["DEBUG", "INFO", "WARNING", "ERROR"])
+    parser.add_argument("--version", action="version", version="%(prog)s " + __version__)
+    return parser.parse_args(argv)
+
+
+def split_ros_args(argv):
+    """Separate ROS remapping arguments (``name:=value``, as roslaunch adds) from ours."""
+    ours = [a for a in argv if ":=" not in a]
+    ros = [a for a in argv if ":=" in a]
+    return ours, ros
+
+
+def load_config(args, ros_args):
+    """The config file, then ROS private params (under roslaunch), then command-line flags."""
+    config = config_mod.load(args.config)
+    node_name = _ros_node_name(ros_args)
+    if node_name:
+        config = _apply_private_params(config, node_name)
+    _apply_flags(config, args)
+    config_mod.check_serving_policy(config)
+    return config
+
+
+def _ros_node_name(ros_args):
+    remaps = dict(a.split(":=", 1) for a in ros_args)
+    name = remaps.get("__name")
+    if not name:
+        return None
+    namespace = remaps.get("__ns") or os.environ.get("ROS_NAMESPACE", "/")
+    return "/" + "/".join(p for p in (namespace.strip("/"), name) if p)
+
+
+def _apply_private_params(config, node_name):
+    """Private params mirror the config file's sections (``~server/port``, ``~drive/backend``, ...)."""
+    from flask_move_server.ros import master
+
+    params = master.private_params(node_name)
+    if not params:
+        return config
+    source = "ROS params of {}".format(node_name)
+    config_file = params.pop("config", None)
+    if config_file:
+        config = config_mod.load(config_file)
+    merged = config_mod.merge(config_mod.as_plain(config), params)
+    result = config_mod.build(config_mod.Config, merged, source=source)
+    result.source = source
+    return result
+
+
+def _apply_flags(config, args):
+    if args.waypoints:
+        config.waypoints.file = os.path.abspath(args.waypoints)
+    if args.sim:
+        config.sim.enabled = True
+        if args.host is None and config.source == "(defaults)":
+            config.server.host = "127.0.0.1"
+        if args.motor_backend is None:
+            config.drive.backend = "sim"
+    if args.map:
+        config.sim.map = os.path.abspath(args.map)
+    if args.host is not None:
+        config.server.host = args.host
+    if args.port is not None:
+        if not 0 <= args.port <= 65535:
+            raise ConfigError("--port", None, "must be a TCP port, 0 to 65535")
+        config.server.port = args.port
+    if args.motor_backend:
+        config.drive.backend = args.motor_backend
+    if args.no_mdns:
+        config.mdns.enabled = False
+    if args.insecure:
+        config.server.insecure = True
+
+
+def setup_logging(level):
+    """Log to stderr: syslog priority prefixes under journald, timestamps on a terminal."""
+    handler = logging.StreamHandler(sys.stderr)
+    if os.environ.get("JOURNAL_STREAM"):
+        handler.setFormatter(_JournalFormatter())
+    else:
+        handler.setFormatter(logging.Formatter("%(asctime)s %(levelname)s %(name)s: %(message)s"))
+    # Not on the root logger: rospy.init_node replaces the root logger's handlers.
+    for name in ("flask_move_server", "waitress"):
+        logger = logging.getLogger(name)
+        logger.handlers[:] = [handler]
+        logger.setLevel(level)
+
+
+class _JournalFormatter(logging.Formatter):
+    _PRIORITY = {"DEBUG": 7, "INFO": 6, "WARNING": 4, "ERROR": 3, "CRITICAL": 2}
+
+    def format(self, record):
+        return "<{}>{}: {}".format(self._PRIORITY.get(record.levelname, 6), record.name, super().format(record))
+
+
+class Server:
+    """The running server: every part, closed once, in reverse order of start."""
+
+    def __init__(self, config):
+        self.config = config
+        self.exit_code = EXIT_OK
+        self.http = None
+        self._stack = contextlib.ExitStack()
+
+    def start(self):
+        from flask_move_server import waypoints
+        from flask_move_server.web import create_app
+
+        stack = self._stack
+        store = waypoints.WaypointStore(self.config.waypoints.file)
+        robot = self._build_robot(stack)
+        app = create_app(self.config, robot, store, token=self.config.resolved_token())
+        self.http = _http_server(app, self.config.server)
+        stack.callback(self.http.close)
+        self.port = int(self.http.effective_port)
+        log.info("serving the API on http://%s:%d (waypoints: %s, %d loaded)",
+                 self.config.server.host, self.port, store.path, len(store.all()))
+        self._node.start()
+        return self
+
+    def _build_robot(self, stack):
+        from flask_move_server.drive import NoDrive
+        from flask_move_server.robot import Robot
+        from flask_move_server.ros.navigator import Navigator
+        from flask_move_server.ros.node import RosNode
+        from flask_move_server.ros.pose import PoseTracker
+        from flask_move_server.ros.teleop import Teleop
+
+        cfg = self.config
+        node = RosNode(cfg.ros.node_name, cfg.ros.master_check_period, cfg.ros.exit_on_new_master, self.fatal)
+        stack.callback(node.close)
+        drive = NoDrive()
+        stack.callback(drive.close)
+        pose = PoseTracker(cfg.ros.frames, cfg.navigation.amcl_pose_topic, node)
+        navigator = Navigator(cfg.navigation, cfg.ros.frames, node, pose)
+        teleop = Teleop(cfg.teleop, node)
+        robot = Robot(node, navigator, pose, teleop, drive)
+        stack.callback(robot.close)
+        self._node = node
+        self.robot = robot
+        return robot
+
+    def serve(self):
+        """Serve until SIGTERM/SIGINT (or :meth:`fatal`); returns the exit status."""
+        try:
+            self.http.run()
+        finally:
+            self.close()
+        return self.exit_code
+
+    def fatal(self, reason):
+        """Called from any thread: stop the server with a non-zero exit status."""
+        log.error("stopping: %s", reason)
+        self.exit_code = EXIT_MASTER_REPLACED
+        os.kill(os.getpid(), signal.SIGTERM)
+
+    def close(self):
+        """Close every part in reverse order of start. Idempotent."""
+        self._stack.close()
+
+
+def _http_server(app, server_config):
+    import waitress
+
+    return waitress.create_server(
+        app,
+        host=server_config.host,
+        port=server_config.port,
+        threads=server_config.threads,
+        max_request_body_size=server_config.max_body_bytes,
+        ident="flask-move-server",
+        clear_untrusted_proxy_headers=True,
+    )
+
+
+def _raise_exit(signum, frame):
+    log.info("received %s, stopping", signal.Signals(signum).name)
+    raise SystemExit(EXIT_OK)
+
+
+def main(argv=None):
+    argv = sys.argv[1:] if argv is None else argv
+    ours, ros_args = split_ros_args(argv)
+    args = parse_args(ours)
+    setup_logging(args.log_level)
+    try:
+        config = load_config(args, ros_args)
+    except ConfigError as exc:
+        return _refuse(exc, EXIT_CONFIG)
+    server = Server(config)
+    signal.signal(signal.SIGTERM, _raise_exit)
+    signal.signal(signal.SIGINT, _raise_exit)
+    try:
+        server.start()
+    except (ConfigError, WaypointFileError) as exc:
+        server.close()
+        return _refuse(exc, EXIT_CONFIG)
+    except OSError as exc:
+        server.close()
+        return _refuse("cannot start: {}".format(exc), EXIT_FAILURE)
+    except SystemExit:
+        server.close()
+        return server.exit_code
+    try:
+        return server.serve()
+    except SystemExit:
+        return server.exit_code
+
+
+def _refuse(reason, status):
+    print("flask-move-server: {}".format(reason), file=sys.stderr)
+    return status
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,108 @@
+"""One exception hierarchy for the whole package.
+
+Every error a user can cause or meet derives from :class:`MoveServerError` and
+carries a short machine-readable ``code``. ``web/errors.py`` maps each class to
+an HTTP status in one place; the CLI maps :class:`ConfigError` to exit status 2.
+"""
+
+
+class MoveServerError(Exception):
+    """Base class of every error raised on purpose by flask-move-server."""
+
+    code = "error"
+
+
+class ConfigError(MoveServerError, ValueError):
+    """The configuration file or a command-line option is invalid."""
+
+    code = "bad_config"
+
+    def __init__(self, source, key, reason):
+        self.source = str(source)
+        self.key = key
+        self.reason = reason
+        where = "{}: {}".format(self.source, key) if key else self.source
+        super().__init__("{}: {}".format(where, reason))
+
+
+class BadRequest(MoveServerError, ValueError):
+    """The request body or one of its fields is malformed."""
+
+    code = "bad_request"
+
+
+class BadWaypoint(BadRequest):
+    """A waypoint name or coordinate is not valid."""
+
+    code = "bad_waypoint"
+
+
+class UnknownWaypoint(MoveServerError, KeyError):
+    """No waypoint has the requested name."""
+
+    code = "unknown_waypoint"
+
+    def __init__(self, name, suggestions=()):
+        self.name = name
+        self.suggestions = list(suggestions)
+        message = "No waypoint named {!r}.".format(name)
+        if self.suggestions:
+            message += " Did you mean: {}?".format(", ".join(repr(s) for s in self.suggestions))
+        else:
+            message += " GET /waypoints lists the known names."
+        super().__init__(message)
+
+    def __str__(self):
+        return self.args[0]
+
+
+class WaypointFileError(MoveServerError, OSError):
+    """The waypoints file cannot be read, parsed or written."""
+
+    code = "waypoints_file"
+
+
+class Conflict(MoveServerError, RuntimeError):
+    """The request conflicts with the robot's current state."""
+
+    code = "conflict"
+
+
+class Unauthorized(MoveServerError, PermissionError):
+    """The request lacks the configured bearer token, or has a wrong one."""
+
+    code = "unauthorized"
+
+
+class RosUnavailable(MoveServerError, ConnectionError):
+    """The ROS master is not reachable (yet), so nothing can be sent."""
+
+    code = "ros_unavailable"
+
+
+class NavigationUnavailable(MoveServerError, ConnectionError):
+    """move_base (the navigation action server) does not answer."""
+
+    code = "move_base_unavailable"
+
+
+class NavigationFailed(MoveServerError, RuntimeError):
+    """A goal ended without reaching its target (aborted, rejected, canceled)."""
+
+    code = "navigation_failed"
+
+    def __init__(self, state, message):
+        self.state = state
+        super().__init__(message)
+
+
+class NoPose(MoveServerError, LookupError):
+    """The robot's pose in the map frame is not known (no tf, no AMCL pose)."""
+
+    code = "no_pose"
+
+
+class DriveError(MoveServerError, RuntimeError):
+    """The motor backend cannot be set up or commanded."""
+
+    code = "drive_error"

@@ -1,0 +1,92 @@
+"""The Robot facade: everything the web layer may ask of the robot.
+
+The Flask app knows this class, not rospy: the same routes run against the
+real robot and the simulated one. It composes the parts ``cli`` built and adds
+the rules that span them (teleop cancels a goal, a goal ends teleop, stop ends
+both and zeroes the velocity).
+"""
+
+from flask_move_server.errors import NavigationFailed, NoPose
+
+
+class Robot:
+    """One robot: navigation, teleop, pose, motors, ROS health."""
+
+    def __init__(self, node, navigator, pose, teleop, drive):
+        self.node = node
+        self.navigator = navigator
+        self.pose = pose
+        self.teleop_control = teleop
+        self.drive = drive
+
+    def goto(self, goal):
+        """Send the robot to ``goal``; returns the goal's sequence number."""
+        seq = self.navigator.goto(goal)
+        self.teleop_control.stop()
+        return seq
+
+    def wait(self, seq, timeout):
+        """Wait up to ``timeout`` s for goal ``seq``; True when reached, False when still under way."""
+        state = self.navigator.wait(seq, timeout)
+        if state == "succeeded":
+            return True
+        if state == "active":
+            return False
+        raise NavigationFailed(state, _failure_message(state, self.navigator.status()))
+
+    def stop(self):
+        """Cancel the goal, end teleop, command zero velocity."""
+        canceled = self.navigator.cancel()
+        self.teleop_control.stop()
+        self.drive.stop()
+        return canceled
+
+    def teleop(self, linear, angular):
+        """Drive at the given velocity for the deadman time; cancels a goal under way."""
+        result = self.teleop_control.command(linear, angular)
+        if self.navigator.active:
+            self.navigator.cancel()
+            result["canceled_goal"] = True
+        return result
+
+    def current_pose(self):
+        """The robot's pose in the map frame now; NoPose when unknown."""
+        reading = self.pose.current()
+        if reading is None:
+            raise NoPose(
+                "The robot's pose is not known: no tf map → base_link and no /amcl_pose yet. "
+                "Is localization (AMCL) running and the robot's initial pose set?"
+            )
+        return reading.pose
+
+    def status(self):
+        """Everything ``GET /status`` shows."""
+        return {
+            "pose": self.pose.as_dict() if self.node.connected else None,
+            "navigation": self.navigator.status(),
+            "teleop": self.teleop_control.status(),
+            "motors": self.drive.status(),
+            "ros": {"state": self.node.state, "master_uri": self.node.master_uri, "node": self.node.name},
+        }
+
+    def health(self):
+        """The short answer of ``GET /health``."""
+        return {
+            "status": "ok",
+            "ros": self.node.state,
+            "move_base": "ready" if self.navigator.server_ready() else "unavailable",
+        }
+
+    def close(self):
+        """Stop moving and release the teleop thread. Idempotent."""
+        self.stop()
+        self.teleop_control.close()
+
+
+def _failure_message(state, nav):
+    target = repr(nav["target"]) if nav["target"] else "the goal"
+    if state == "canceled":
+        return "The goal to {} was canceled before the robot arrived.".format(target)
+    if state == "rejected":
+        return "move_base rejected the goal to {}: is it inside the map?".format(target)
+    return "move_base aborted the goal to {}: no path was found or the robot got stuck.".format(target)

@@ -1,0 +1,194 @@
+"""Goals to move_base, through actionlib (or the plain topic), and how they go.
+
+The state of the current goal is one of ``idle``, ``active``, ``succeeded``,
+``aborted``, ``canceled``, ``rejected``. Each goal gets a sequence number, so a
+late callback of a replaced goal never overwrites the state of the new one.
+"""
+
+import logging
+import threading
+import time
+
+import actionlib
+import rospy
+from actionlib_msgs.msg import GoalID, GoalStatus
+from geometry_msgs.msg import PoseStamped
+from move_base_msgs.msg import MoveBaseAction, MoveBaseGoal
+
+from flask_move_server.errors import NavigationUnavailable, RosUnavailable
+from flask_move_server.geometry import Pose2D, quaternion_to_yaw, yaw_to_quaternion
+
+log = logging.getLogger(__name__)
+
+IDLE, ACTIVE, SUCCEEDED, ABORTED, CANCELED, REJECTED = (
+    "idle", "active", "succeeded", "aborted", "canceled", "rejected",
+)
+TERMINAL = (SUCCEEDED, ABORTED, CANCELED, REJECTED)
+
+_FROM_STATUS = {
+    GoalStatus.SUCCEEDED: SUCCEEDED,
+    GoalStatus.ABORTED: ABORTED,
+    GoalStatus.LOST: ABORTED,
+    GoalStatus.REJECTED: REJECTED,
+    GoalStatus.PREEMPTED: CANCELED,
+    GoalStatus.RECALLED: CANCELED,
+}
+
+
+class Navigator:
+    """Sends the robot to goals and tracks the current one."""
+
+    def __init__(self, config, frames, node, pose_tracker):
+        self._config = config
+        self._frame = frames.map
+        self._node = node
+        self._pose = pose_tracker
+        self._cond = threading.Condition()
+        self._seq = 0
+        self._state = IDLE
+        self._goal = None
+        self._feedback_pose = None
+        self._client = None
+        self._goal_pub = None
+        self._cancel_pub = None
+        node.when_ready(self._setup)
+
+    def _setup(self):
+        if self._config.goal_interface == "action":
+            self._client = actionlib.SimpleActionClient(self._config.action, MoveBaseAction)
+        else:
+            self._goal_pub = rospy.Publisher(self._config.simple_goal_topic, PoseStamped, queue_size=1, latch=False)
+            self._cancel_pub = rospy.Publisher(self._config.action + "/cancel", GoalID, queue_size=1)
+
+    # commands ----------------------------------------------------------------
+
+    def goto(self, goal):
+        """Send ``goal`` (a Goal); returns its sequence number. Replaces any goal under way."""
+        self._check_reachable()
+        with self._cond:
+            self._seq += 1
+            seq = self._seq
+            self._goal, self._state, self._feedback_pose = goal, ACTIVE, None
+            self._cond.notify_all()
+        if self._client is not None:
+            self._client.send_goal(
+                _move_base_goal(goal.pose, self._frame),
+                done_cb=lambda status, result: self._done(seq, status),
+                feedback_cb=lambda feedback: self._feedback(seq, feedback),
+            )
+        else:
+            self._goal_pub.publish(_pose_stamped(goal.pose, self._frame))
+        log.info("goal %d: %s %s", seq, goal.target or "pose", goal.pose.as_dict())
+        return seq
+
+    def cancel(self):
+        """Cancel the goal under way, if any; True when one was."""
+        with self._cond:
+            if self._state != ACTIVE:
+                return False
+            seq = self._seq
+        if self._client is not None:
+            self._client.cancel_goal()
+        elif self._cancel_pub is not None:
+            self._cancel_pub.publish(GoalID())
+            self._finish(seq, CANCELED)
+        log.info("goal %d: cancel requested", seq)
+        return True
+
+    def wait(self, seq, timeout):
+        """Block until goal ``seq`` ends or ``timeout`` passes; its state then."""
+        deadline = time.monotonic() + timeout
+        with self._cond:
+            while self._seq == seq and self._state not in TERMINAL:
+                remaining = deadline - time.monotonic()
+                if remaining <= 0:
+                    break
+                self._cond.wait(remaining)
+            return self._state if self._seq == seq else CANCELED
+
+    @property
+    def active(self):
+        return self._state == ACTIVE
+
+    def status(self):
+        """The navigation part of ``/status``."""
+        with self._cond:
+            goal, state, seq = self._goal, self._state, self._seq
+        return {
+            "state": state,
+            "target": goal.target if goal else None,
+            "goal": goal.pose.as_dict() if goal else None,
+            "goal_id": seq or None,
+            "distance_remaining": self._distance_remaining(goal, state),
+            "interface": self._config.goal_interface,
+        }
+
+    def server_ready(self):
+        """True when goals can be sent now (move_base answers, or topic mode)."""
+        if not self._node.connected:
+            return False
+        if self._client is None:
+            return self._goal_pub is not None
+        return self._client.wait_for_server(rospy.Duration(0.001))
+
+    # internals ---------------------------------------------------------------
+
+    def _check_reachable(self):
+        if not self._node.connected:
+            raise RosUnavailable(
+                "ROS is not reachable: no master answers at {} ({}). Start roscore, "
+                "or set ROS_MASTER_URI.".format(self._node.master_uri, self._node.state)
+            )
+        if self._client is None and self._goal_pub is None:
+            raise RosUnavailable("The ROS node is still starting; try again in a moment.")
+        if self._client is not None and not self._client.wait_for_server(rospy.Duration(self._config.server_wait)):
+            action = rospy.resolve_name(self._config.action)
+            raise NavigationUnavailable(
+                "move_base does not answer on the action '{}': is the navigation stack "
+                "running (roslaunch flask_move_server navigation.launch)?".format(action)
+            )
+
+    def _done(self, seq, status):
+        state = _FROM_STATUS.get(status, ABORTED)
+        self._finish(seq, state)
+        log.info("goal %d: %s", seq, state)
+
+    def _finish(self, seq, state):
+        with self._cond:
+            if seq == self._seq:
+                self._state = state
+                self._cond.notify_all()
+
+    def _feedback(self, seq, feedback):
+        p = feedback.base_position.pose
+        pose = Pose2D(p.position.x, p.position.y, quaternion_to_yaw(
+            p.orientation.x, p.orientation.y, p.orientation.z, p.orientation.w))
+        with self._cond:
+            if seq == self._seq:
+                self._feedback_pose = pose
+
+    def _distance_remaining(self, goal, state):
+        if goal is None:
+            return None
+        if state == SUCCEEDED:
+            return 0.0
+        pose = self._pose.current()
+        here = pose.pose if pose is not None else self._feedback_pose
+        return None if here is None else round(here.distance_to(goal.pose), 3)
+
+
+def _pose_stamped(pose, frame):
+    msg = PoseStamped()
+    msg.header.frame_id = frame
+    msg.header.stamp = rospy.Time.now()
+    msg.pose.position.x, msg.pose.position.y = pose.x, pose.y
+    q = yaw_to_quaternion(pose.yaw)
+    o = msg.pose.orientation
+    o.x, o.y, o.z, o.w = q
+    return msg
+
+
+def _move_base_goal(pose, frame):
+    goal = MoveBaseGoal()
+    goal.target_pose = _pose_stamped(pose, frame)
+    return goal

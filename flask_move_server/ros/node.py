@@ -1,0 +1,159 @@
+"""The process's rospy node: started in the background, watched, closed once.
+
+``rospy.init_node`` blocks until a master answers, so it runs in a thread:
+HTTP serves from the first second and ``/health`` says ``"ros": "waiting"``
+until the node is registered. Parts that need the node (navigator, pose
+tracker, teleop, base controller) register a callback with :meth:`when_ready`.
+
+The master is then watched. When it stops answering, the node is ``lost``
+(``/health`` says so; ``on_lost`` callbacks stop the motors). When a *new*
+master answers (its ``/run_id``, or pid, changed) this node is not registered
+with it and rospy cannot re-register, so ``on_fatal`` is called: the server
+exits non-zero and systemd restarts it cleanly.
+"""
+
+import logging
+import threading
+import time
+
+from flask_move_server.ros import master
+
+log = logging.getLogger(__name__)
+
+WAITING, CONNECTED, LOST, NEW_MASTER, CLOSED = "waiting", "connected", "lost", "new_master", "closed"
+
+
+class RosNode:
+    """One rospy node per process, with its master watched from a thread."""
+
+    def __init__(self, name="flask_move_server", check_period=1.0, exit_on_new_master=True, on_fatal=None):
+        self.name = name
+        self.check_period = check_period
+        self.exit_on_new_master = exit_on_new_master
+        self.on_fatal = on_fatal
+        self.state = WAITING
+        self._identity = None
+        self._owns_rospy = False
+        self._ready_callbacks = []
+        self._lost_callbacks = []
+        self._lock = threading.Lock()
+        self._stop = threading.Event()
+        self._thread = None
+
+    @property
+    def master_uri(self):
+        return master.master_uri()
+
+    @property
+    def connected(self):
+        return self.state == CONNECTED
+
+    def when_ready(self, callback):
+        """Run ``callback()`` once the node is registered (at once if it is)."""
+        with self._lock:
+            if self.state not in (WAITING, CLOSED):
+                run_now = True
+            else:
+                self._ready_callbacks.append(callback)
+                run_now = False
+        if run_now:
+            _call(callback)
+
+    def when_lost(self, callback):
+        """Run ``callback()`` each time the master stops answering."""
+        self._lost_callbacks.append(callback)
+
+    def start(self):
+        """Start connecting in the background; returns at once."""
+        self._thread = threading.Thread(target=self._run, name="ros-node", daemon=True)
+        self._thread.start()
+
+    def wait_connected(self, timeout):
+        """Block until connected or ``timeout``; True when connected."""
+        deadline = time.monotonic() + timeout
+        while not self.connected and time.monotonic() < deadline and not self._stop.is_set():
+            self._stop.wait(0.05)
+        return self.connected
+
+    def close(self):
+        """Stop watching and shut the rospy node down (if this object started it). Idempotent."""
+        if self.state == CLOSED:
+            return
+        self.state = CLOSED
+        self._stop.set()
+        if self._thread is not None and self._thread is not threading.current_thread():
+            self._thread.join(timeout=5)
+        if self._owns_rospy:
+            import rospy
+
+            rospy.signal_shutdown("flask-move-server stopping")
+
+    # the background thread ---------------------------------------------------
+
+    def _run(self):
+        uri = self.master_uri
+        log.info("waiting for the ROS master at %s", uri)
+        while self._identity is None and not self._stop.is_set():
+            self._identity = master.identity(self.name, timeout=1.0)
+            if self._identity is None:
+                self._stop.wait(0.5)
+        if self._stop.is_set():
+            return
+        self._init_rospy()
+        with self._lock:
+            self.state = CONNECTED
+            callbacks, self._ready_callbacks = self._ready_callbacks, []
+        log.info("connected to the ROS master at %s as %s", uri, self.name)
+        for callback in callbacks:
+            _call(callback)
+        self._watch()
+
+    def _init_rospy(self):
+        import rospy
+
+        if rospy.core.is_initialized():
+            self.name = rospy.get_name()
+            return
+        rospy.init_node(self.name, disable_signals=True)
+        self.name = rospy.get_name()
+        self._owns_rospy = True
+
+    def _watch(self):
+        while not self._stop.wait(self.check_period):
+            identity = master.identity(self.name, timeout=max(1.0, self.check_period))
+            if identity is None:
+                self._master_gone()
+            elif identity != self._identity:
+                self._master_replaced()
+                return
+            elif self.state == LOST:
+                log.warning("the ROS master at %s answers again", self.master_uri)
+                self.state = CONNECTED
+
+    def _master_gone(self):
+        if self.state != CONNECTED:
+            return
+        self.state = LOST
+        log.error("the ROS master at %s stopped answering; motors stopped, goals unavailable", self.master_uri)
+        for callback in self._lost_callbacks:
+            _call(callback)
+
+    def _master_replaced(self):
+        self.state = NEW_MASTER
+        for callback in self._lost_callbacks:
+            _call(callback)
+        message = (
+            "a new ROS master answers at {}; a rospy node cannot register again, "
+            "so the server must restart".format(self.master_uri)
+        )
+        log.error(message)
+        if self.exit_on_new_master and self.on_fatal is not None:
+            self.on_fatal(message)
+
+
+def _call(callback):
+    """Run a callback; a failure is logged, never fatal to the node."""
+    try:
+        callback()
+    except Exception:
+        log.exception("ROS start-up callback %r failed", callback)

@@ -1,0 +1,67 @@
+"""Where the robot is: tf ``map → base_link``, falling back to ``/amcl_pose``."""
+
+import threading
+from dataclasses import dataclass
+
+import rospy
+import tf2_ros
+from geometry_msgs.msg import PoseWithCovarianceStamped
+
+from flask_move_server.geometry import Pose2D, quaternion_to_yaw
+
+
+@dataclass(frozen=True)
+class PoseReading:
+    """A pose, the frame it is in, when it was measured and where it came from."""
+
+    pose: Pose2D
+    frame: str
+    stamp: float
+    source: str
+
+    def as_dict(self, now):
+        data = self.pose.as_dict()
+        data.update(frame=self.frame, age=round(max(0.0, now - self.stamp), 3), source=self.source)
+        return data
+
+
+class PoseTracker:
+    """The robot's latest pose in the map frame, from tf or AMCL."""
+
+    def __init__(self, frames, amcl_pose_topic, node):
+        self._frames = frames
+        self._amcl_topic = amcl_pose_topic
+        self._lock = threading.Lock()
+        self._amcl = None
+        self._buffer = None
+        node.when_ready(self._setup)
+
+    def _setup(self):
+        self._buffer = tf2_ros.Buffer(cache_time=rospy.Duration(10.0))
+        self._listener = tf2_ros.TransformListener(self._buffer)
+        rospy.Subscriber(self._amcl_topic, PoseWithCovarianceStamped, self._on_amcl, queue_size=1)
+
+    def current(self):
+        """The latest :class:`PoseReading`, or None when neither tf nor AMCL gave one."""
+        return self._from_tf() or self._amcl
+
+    def _from_tf(self):
+        if self._buffer is None:
+            return None
+        try:
+            t = self._buffer.lookup_transform(self._frames.map, self._frames.base_link, rospy.Time(0))
+        except (tf2_ros.LookupException, tf2_ros.ConnectivityException, tf2_ros.ExtrapolationException):
+            return None
+        r, p = t.transform.rotation, t.transform.translation
+        pose = Pose2D(p.x, p.y, quaternion_to_yaw(r.x, r.y, r.z, r.w))
+        return PoseReading(pose, self._frames.map, t.header.stamp.to_sec(), "tf")
+
+    def _on_amcl(self, msg):
+        p, o = msg.pose.pose.position, msg.pose.pose.orientation
+        pose = Pose2D(p.x, p.y, quaternion_to_yaw(o.x, o.y, o.z, o.w))
+        self._amcl = PoseReading(pose, msg.header.frame_id or self._frames.map, msg.header.stamp.to_sec(), "amcl_pose")
+
+    def as_dict(self):
+        """The ``pose`` of ``/status``: x, y, yaw, frame, age (s), or None."""
+        reading = self.current()
+        return None if reading is None else reading.as_dict(rospy.get_time())

@@ -1,0 +1,112 @@
+"""Velocity commands from ``POST /teleop`` onto ``/cmd_vel``, with a deadman.
+
+A command holds for ``deadman`` seconds: it is re-published at ``rate`` Hz
+while it holds, and one zero Twist is published when it expires without a new
+command, so the base stops even if its own watchdog is slower.
+"""
+
+import threading
+import time
+
+import rospy
+from geometry_msgs.msg import Twist
+
+from flask_move_server.errors import RosUnavailable
+
+
+def clamp(value, limit):
+    return max(-limit, min(limit, value))
+
+
+class Teleop:
+    """The teleop command in force and the thread that keeps it alive."""
+
+    def __init__(self, config, node):
+        self._config = config
+        self._node = node
+        self._cond = threading.Condition()
+        self._linear = self._angular = 0.0
+        self._deadline = None
+        self._last_publish = 0.0
+        self._pub = None
+        self._closed = False
+        self._thread = None
+        node.when_ready(self._setup)
+
+    def _setup(self):
+        self._pub = rospy.Publisher(self._config.topic, Twist, queue_size=1, tcp_nodelay=True)
+        self._thread = threading.Thread(target=self._run, name="teleop", daemon=True)
+        self._thread.start()
+
+    def command(self, linear, angular):
+        """Apply a velocity (clamped to the limits) for the deadman time."""
+        if self._pub is None or not self._node.connected:
+            raise RosUnavailable(
+                "ROS is not reachable at {}: cannot publish velocity commands.".format(self._node.master_uri)
+            )
+        linear, angular = clamp(linear, self._config.max_linear), clamp(angular, self._config.max_angular)
+        with self._cond:
+            self._linear, self._angular = linear, angular
+            self._deadline = time.monotonic() + self._config.deadman
+            self._publish(linear, angular)
+            self._cond.notify_all()
+        return {"linear": linear, "angular": angular, "hold": self._config.deadman}
+
+    def stop(self):
+        """End any command in force and publish one zero Twist."""
+        with self._cond:
+            self._deadline = None
+            self._linear = self._angular = 0.0
+            self._cond.notify_all()
+        if self._pub is not None and self._node.connected:
+            self._pub.publish(Twist())
+
+    def status(self):
+        """The ``teleop`` part of ``/status``."""
+        with self._cond:
+            remaining = None if self._deadline is None else max(0.0, self._deadline - time.monotonic())
+            return {
+                "active": remaining is not None,
+                "linear": self._linear,
+                "angular": self._angular,
+                "remaining": None if remaining is None else round(remaining, 3),
+                "deadman": self._config.deadman,
+            }
+
+    def close(self):
+        """Stop the robot and the thread. Idempotent."""
+        if self._closed:
+            return
+        self.stop()
+        with self._cond:
+            self._closed = True
+            self._cond.notify_all()
+        if self._thread is not None:
+            self._thread.join(timeout=2)
+
+    def _run(self):
+        period = 1.0 / self._config.rate
+        with self._cond:
+            while not self._closed:
+                if self._deadline is None:
+                    self._cond.wait()
+                    continue
+                now = time.monotonic()
+                if now >= self._deadline:
+                    self._deadline = None
+                    self._linear = self._angular = 0.0
+                    self._pub.publish(Twist())
+                elif now >= self._last_publish + period:
+                    self._publish(self._linear, self._angular)
+                else:
+                    self._cond.wait(min(self._last_publish + period, self._deadline) - now)
+
+    def _publish(self, linear, angular):
+        self._last_publish = time.monotonic()
+        self._pub.publish(_twist(linear, angular))
+
+
+def _twist(linear, angular):
+    msg = Twist()
+    msg.linear.x, msg.angular.z = linear, angular
+    return msg

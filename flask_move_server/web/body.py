@@ -1,0 +1,64 @@
+"""Reading request bodies: JSON whatever the Content-Type, strictly validated."""
+
+import json
+import math
+
+from flask import request
+
+from flask_move_server.errors import BadRequest
+
+
+def _no_constants(name):
+    raise ValueError("{} is not a number JSON allows".format(name))
+
+
+def json_object(allowed, required=True):
+    """The request body as a dict with only the ``allowed`` keys; {} if empty and not required."""
+    raw = request.get_data(cache=True)
+    if not raw.strip():
+        if required:
+            raise BadRequest("This endpoint needs a JSON object body, e.g. {}.".format(_example(allowed)))
+        return {}
+    try:
+        data = json.loads(raw.decode("utf-8"), parse_constant=_no_constants)
+    except RecursionError:
+        raise BadRequest("The JSON body is nested too deeply.")
+    except (UnicodeDecodeError, ValueError) as exc:
+        raise BadRequest("The body is not valid JSON: {}.".format(exc))
+    if not isinstance(data, dict):
+        raise BadRequest("The body must be a JSON object, e.g. {}.".format(_example(allowed)))
+    unknown = sorted(set(data) - set(allowed))
+    if unknown:
+        raise BadRequest("Unknown field {} (this endpoint takes {}).".format(
+            json.dumps(unknown[0]), ", ".join(sorted(allowed))))
+    return data
+
+
+def number(data, key, minimum=None, maximum=None):
+    """``data[key]`` as a finite float within bounds, else BadRequest naming the field."""
+    if key not in data:
+        raise BadRequest("Field {!r} is required.".format(key))
+    value = data[key]
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        raise BadRequest("Field {!r} must be a finite number, got {}.".format(key, json.dumps(value)[:40]))
+    if minimum is not None and value < minimum or maximum is not None and value > maximum:
+        raise BadRequest("Field {!r} must be between {} and {}, got {}.".format(key, minimum, maximum, value))
+    return float(value)
+
+
+def text(data, key):
+    value = data.get(key)
+    if not isinstance(value, str):
+        raise BadRequest("Field {!r} must be text, got {}.".format(key, json.dumps(value)[:40]))
+    return value
+
+
+_EXAMPLES = {
+    frozenset({"name", "x", "y", "yaw", "wait"}): '{"name": "kitchen"}',
+    frozenset({"linear", "angular"}): '{"linear": 0.2, "angular": 0.0}',
+    frozenset({"x", "y", "yaw", "from"}): '{"x": 1.0, "y": 2.0, "yaw": 0.0} or {"from": "current"}',
+}
+
+
+def _example(allowed):
+    return _EXAMPLES.get(frozenset(allowed), "{...}")

@@ -1,0 +1,81 @@
+"""One error shape on the wire, and the one place that maps errors to statuses.
+
+``{"status": "error", "error": "<code>", "message": "<sentence a user can act on>"}``
+for every failure: our own exceptions, Flask's HTTP errors (404, 405, 413...)
+and, as a last resort, anything unexpected (500, logged with its traceback).
+Never an HTML error page.
+"""
+
+import logging
+
+from flask import jsonify
+from werkzeug.exceptions import HTTPException
+
+from flask_move_server import errors
+
+log = logging.getLogger(__name__)
+
+STATUS = (
+    (errors.Unauthorized, 401),
+    (errors.UnknownWaypoint, 404),
+    (errors.BadRequest, 400),
+    (errors.NavigationFailed, 409),
+    (errors.NoPose, 409),
+    (errors.Conflict, 409),
+    (errors.WaypointFileError, 409),
+    (errors.RosUnavailable, 503),
+    (errors.NavigationUnavailable, 503),
+    (errors.DriveError, 503),
+)
+
+_HTTP_CODES = {
+    400: ("bad_request", "The request is malformed."),
+    404: ("not_found", "No such endpoint. The API: /goto, /stop, /teleop, /waypoints, /status, /health."),
+    405: ("method_not_allowed", "This endpoint does not take that method."),
+    413: ("body_too_large", "The request body is too large."),
+}
+
+
+def error_response(status, code, message, **extra):
+    body = {"status": "error", "error": code, "message": message}
+    body.update(extra)
+    response = jsonify(body)
+    response.status_code = status
+    return response
+
+
+def status_of(exc):
+    for cls, status in STATUS:
+        if isinstance(exc, cls):
+            return status
+    return 500
+
+
+def init_app(app):
+    """Register the JSON error handlers on ``app``."""
+
+    @app.errorhandler(errors.MoveServerError)
+    def _ours(exc):
+        status = status_of(exc)
+        extra = {}
+        if isinstance(exc, errors.UnknownWaypoint):
+            extra["suggestions"] = exc.suggestions
+        if isinstance(exc, errors.NavigationFailed):
+            extra["state"] = exc.state
+        response = error_response(status, exc.code, str(exc), **extra)
+        if status == 401:
+            response.headers["WWW-Authenticate"] = 'Bearer realm="flask-move-server"'
+        return response
+
+    @app.errorhandler(HTTPException)
+    def _http(exc):
+        code, message = _HTTP_CODES.get(exc.code, (exc.name.lower().replace(" ", "_"), exc.description))
+        response = error_response(exc.code, code, message)
+        if exc.code == 405 and exc.valid_methods:
+            response.headers["Allow"] = ", ".join(exc.valid_methods)
+        return response
+
+    @app.errorhandler(Exception)
+    def _unexpected(exc):
+        log.exception("unexpected error serving a request")
+        return error_response(500, "internal_error", "The server failed unexpectedly; its log has the details.")

@@ -1,0 +1,113 @@
+"""The HTTP API of CONTRACT.md: goals, stop, teleop, waypoints, status, health.
+
+Routes parse and validate the request, call the Robot facade or the waypoint
+store, and shape the JSON answer. They know nothing of rospy.
+"""
+
+from flask import Blueprint, current_app, jsonify
+
+from flask_move_server.errors import BadRequest
+from flask_move_server.geometry import Goal, Pose2D
+from flask_move_server.waypoints import check_name, make_waypoint
+from flask_move_server.web.body import json_object, number, text
+
+api = Blueprint("api", __name__)
+
+GOTO_FIELDS = ("name", "x", "y", "yaw", "wait")
+
+
+def _robot():
+    return current_app.extensions["flask_move_server"]["robot"]
+
+
+def _store():
+    return current_app.extensions["flask_move_server"]["store"]
+
+
+def _config():
+    return current_app.extensions["flask_move_server"]["config"]
+
+
+@api.route("/goto", methods=["POST"])
+def goto():
+    data = json_object(GOTO_FIELDS)
+    goal = _goal_from(data)
+    wait = number(data, "wait", 0, _config().navigation.max_wait) if "wait" in data else None
+    seq = _robot().goto(goal)
+    body = {"status": "ok", "target": goal.target, "goal": goal.pose.as_dict(), "goal_id": seq}
+    if wait is None:
+        return jsonify(body), 202
+    reached = _robot().wait(seq, wait)
+    body["navigation"] = _robot().navigator.status()
+    return jsonify(body), 200 if reached else 202
+
+
+def _goal_from(data):
+    if "name" in data:
+        if any(k in data for k in ("x", "y", "yaw")):
+            raise BadRequest("Give either a waypoint 'name' or 'x', 'y', 'yaw', not both.")
+        wp = _store().get(text(data, "name"))
+        return Goal(Pose2D(wp.x, wp.y, wp.yaw), wp.name)
+    if not any(k in data for k in ("x", "y", "yaw")):
+        raise BadRequest('Say where to go: {"name": "kitchen"} or {"x": 1.0, "y": 2.0, "yaw": 0.0}.')
+    return Goal(Pose2D(number(data, "x"), number(data, "y"), number(data, "yaw") if "yaw" in data else 0.0))
+
+
+@api.route("/stop", methods=["POST"])
+def stop():
+    json_object((), required=False)
+    canceled = _robot().stop()
+    return jsonify({"status": "ok", "canceled_goal": canceled})
+
+
+@api.route("/teleop", methods=["POST"])
+def teleop():
+    data = json_object(("linear", "angular"))
+    linear = number(data, "linear") if "linear" in data else 0.0
+    angular = number(data, "angular") if "angular" in data else 0.0
+    result = _robot().teleop(linear, angular)
+    result["status"] = "ok"
+    return jsonify(result)
+
+
+@api.route("/waypoints", methods=["GET"])
+def list_waypoints():
+    return jsonify({"waypoints": [wp.as_dict() for wp in _store().all()]})
+
+
+@api.route("/waypoints/<path:name>", methods=["GET"])
+def get_waypoint(name):
+    return jsonify(_store().get(name).as_dict())
+
+
+@api.route("/waypoints/<path:name>", methods=["PUT"])
+def put_waypoint(name):
+    check_name(name)
+    data = json_object(("x", "y", "yaw", "from"))
+    if "from" in data:
+        if data["from"] != "current" or len(data) > 1:
+            raise BadRequest('Use {"from": "current"} alone to record the robot\'s pose now.')
+        pose = _robot().current_pose()
+        waypoint = make_waypoint(name, pose.x, pose.y, pose.yaw)
+    else:
+        waypoint = make_waypoint(name, number(data, "x"), number(data, "y"), number(data, "yaw"))
+    created = _store().put(waypoint)
+    return jsonify({"status": "ok", "created": created, "waypoint": waypoint.as_dict()}), 201 if created else 200
+
+
+@api.route("/waypoints/<path:name>", methods=["DELETE"])
+def delete_waypoint(name):
+    _store().delete(name)
+    return "", 204
+
+
+@api.route("/status", methods=["GET"])
+def status():
+    body = _robot().status()
+    body["waypoints"] = {"file": _store().path, "problem": _store().problem}
+    return jsonify(body)
+
+
+@api.route("/health", methods=["GET"])
+def health():
+    return jsonify(_robot().health())

@@ -1,0 +1,51 @@
+"""flask-move-server: send a ROS 1 robot to named places over HTTP.
+
+rospy, actionlib, tf2 and the message packages come from the system (Debian's
+python3-rospy & co., or /opt/ros/noetic), not from PyPI: install into a venv
+made with --system-site-packages (``make setup`` does).
+"""
+
+import re
+from pathlib import Path
+
+from setuptools import find_packages, setup
+
+HERE = Path(__file__).parent
+VERSION = re.search(r'__version__ = "([^"]+)"', (HERE / "flask_move_server" / "__init__.py").read_text()).group(1)
+
+setup(
+    name="flask-move-server",
+    version=VERSION,
+    description="Send a Raspberry Pi ROS 1 robot to named waypoints with one HTTP request",
+    long_description=(HERE / "README.md").read_text(encoding="utf-8"),
+    long_description_content_type="text/markdown",
+    license="BSD-3-Clause",
+    python_requires=">=3.8",
+    packages=find_packages(include=["flask_move_server", "flask_move_server.*"]),
+    include_package_data=True,
+    package_data={"flask_move_server": ["web/static/*", "data/*", "data/maps/*"]},
+    install_requires=[
+        "Flask>=2.2",
+        "waitress>=2.1",
+        "PyYAML>=5.3",
+        "requests>=2.22",
+        "zeroconf>=0.47",
+        "pyserial>=3.4",
+    ],
+    extras_require={
+        "test": ["pytest>=7", "pytest-timeout>=2", "hypothesis>=6", "ruff>=0.4", "vermin>=1.5"],
+        "pi": ["RPi.GPIO>=0.7; platform_machine in 'armv7l aarch64'"],
+    },
+    entry_points={
+        "console_scripts": [
+            "flask-move-server = flask_move_server.cli:main",
+        ],
+    },
+    classifiers=[
+        "License :: OSI Approved :: BSD License",
+        "Programming Language :: Python :: 3.8",
+        "Programming Language :: Python :: 3.11",
+        "Framework :: Flask",
+        "Topic :: Scientific/Engineering :: Artificial Intelligence",
+    ],
+)

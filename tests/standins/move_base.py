@@ -1,0 +1,57 @@
+"""A scripted move_base: a real actionlib SimpleActionServer of MoveBaseAction.
+
+Used by the server-core tests to drive each goal outcome; the simulation
+(flask_move_server.sim) has the planning one. The goal's x decides the outcome:
+
+- ``x == ABORT_X``: aborted;  ``x == REJECT_X``: rejected;
+- ``x == HOLD_X``: stays active (feedback keeps coming) until canceled or replaced;
+- anything else: succeeds after ``delay`` seconds, with feedback on the way.
+"""
+
+import threading
+import time
+
+import actionlib
+import rospy
+from move_base_msgs.msg import MoveBaseAction, MoveBaseFeedback, MoveBaseResult
+
+ABORT_X, REJECT_X, HOLD_X = -100.0, -200.0, -300.0
+
+
+class ScriptedMoveBase:
+    def __init__(self, name="move_base", delay=0.2):
+        self.name = name
+        self.delay = delay
+        self.goals = []  # every goal received, with the monotonic time it arrived
+        self._server = actionlib.SimpleActionServer(name, MoveBaseAction, execute_cb=self._execute, auto_start=False)
+        self._server.start()
+        self._lock = threading.Lock()
+
+    def _execute(self, goal):
+        with self._lock:
+            self.goals.append((time.monotonic(), goal))
+        x = goal.target_pose.pose.position.x
+        if x == REJECT_X:
+            # SimpleActionServer accepts before execute; reject-on-arrival looks like an abort with text.
+            self._server.set_aborted(MoveBaseResult(), "rejected by stand-in")
+            return
+        if x == ABORT_X:
+            self._server.set_aborted(MoveBaseResult(), "no path")
+            return
+        deadline = time.monotonic() + (3600 if x == HOLD_X else self.delay)
+        while time.monotonic() < deadline:
+            if self._server.is_preempt_requested() or rospy.is_shutdown():
+                self._server.set_preempted()
+                return
+            feedback = MoveBaseFeedback()
+            feedback.base_position = goal.target_pose
+            self._server.publish_feedback(feedback)
+            time.sleep(0.02)
+        self._server.set_succeeded(MoveBaseResult())
+
+    def shutdown(self):
+        # actionlib servers have no stop(); unregister their topics so the name is free.
+        for attr in ("status_pub", "result_pub", "feedback_pub", "goal_sub", "cancel_sub"):
+            topic = getattr(self._server.action_server, attr, None)
+            if topic is not None:
+                topic.unregister()
