@@ -160,21 +160,14 @@ class Server:
 
     def _build_robot(self, stack):
         from flask_move_server.drive import NoDrive
-        from flask_move_server.robot import Robot
-        from flask_move_server.ros.navigator import Navigator
         from flask_move_server.ros.node import RosNode
-        from flask_move_server.ros.pose import PoseTracker
-        from flask_move_server.ros.teleop import Teleop
 
         cfg = self.config
         node = RosNode(cfg.ros.node_name, cfg.ros.master_check_period, cfg.ros.exit_on_new_master, self.fatal)
         stack.callback(node.close)
         drive = NoDrive()
         stack.callback(drive.close)
-        pose = PoseTracker(cfg.ros.frames, cfg.navigation.amcl_pose_topic, node)
-        navigator = Navigator(cfg.navigation, cfg.ros.frames, node, pose)
-        teleop = Teleop(cfg.teleop, node)
-        robot = Robot(node, navigator, pose, teleop, drive)
+        robot = build_robot(cfg, node, drive)
         stack.callback(robot.close)
         self._node = node
         self.robot = robot
@@ -197,6 +190,19 @@ class Server:
     def close(self):
         """Close every part in reverse order of start. Idempotent."""
         self._stack.close()
+
+
+def build_robot(config, node, drive):
+    """The Robot facade over ``node``: pose tracker, navigator, teleop, ``drive``."""
+    from flask_move_server.robot import Robot
+    from flask_move_server.ros.navigator import Navigator
+    from flask_move_server.ros.pose import PoseTracker
+    from flask_move_server.ros.teleop import Teleop
+
+    pose = PoseTracker(config.ros.frames, config.navigation.amcl_pose_topic, node)
+    navigator = Navigator(config.navigation, config.ros.frames, node, pose)
+    teleop = Teleop(config.teleop, node)
+    return Robot(node, navigator, pose, teleop, drive)
 
 
 def _http_server(app, server_config):
