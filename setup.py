@@ -39,6 +39,7 @@ setup(
     entry_points={
         "console_scripts": [
             "flask-move-server = flask_move_server.cli:main",
+            "robotctl = flask_move_server.client:main",
         ],
     },
     classifiers=[

@@ -106,3 +106,13 @@ class DriveError(MoveServerError, RuntimeError):
     """The motor backend cannot be set up or commanded."""
 
     code = "drive_error"
+
+
+class ClientError(MoveServerError, RuntimeError):
+    """A robotctl or record-waypoints request failed; ``exit_status`` says how."""
+
+    code = "client_error"
+
+    def __init__(self, message, exit_status=1):
+        self.exit_status = exit_status
+        super().__init__(message)
