@@ -108,11 +108,75 @@ class TeleopConfig:
     rate: float = _check(_positive, default=10.0)
 
 
+def _fraction(value):
+    return None if 0 <= value <= 1 else "must be between 0 and 1"
+
+
+def _gpio(value):
+    return None if value is None or 0 <= value <= 27 else "must be a BCM GPIO number, 0 to 27"
+
+
+@dataclass
+class MotorChannelConfig:
+    """One L298N channel (a motor, or two in parallel): BCM pins and direction."""
+
+    in1: Optional[int] = _check(_gpio, default=None)
+    in2: Optional[int] = _check(_gpio, default=None)
+    en: Optional[int] = _check(_gpio, default=None)
+    invert: bool = False
+
+
+def _channels(*pins):
+    return field(default_factory=lambda: [MotorChannelConfig(*p) for p in pins])
+
+
+@dataclass
+class L298nConfig:
+    """Two L298N bridges on the Pi's GPIO (BCM numbering); defaults in docs/wiring.md."""
+
+    left: List[MotorChannelConfig] = _channels((17, 27, 22), (23, 24, 25))
+    right: List[MotorChannelConfig] = _channels((12, 13, 19), (16, 20, 21))
+    pwm_frequency: float = _check(_positive, default=200.0)
+    stop_mode: Literal["brake", "coast"] = "brake"
+
+
+@dataclass
+class SerialDriveConfig:
+    """A microcontroller speaking the ros_arduino_bridge protocol over pyserial."""
+
+    port: str = "/dev/ttyACM0"
+    baudrate: int = _check(_positive, default=57600)
+    timeout: float = _check(_positive, default=0.2)
+    pid_rate: float = _check(_positive, default=30.0)
+    ticks_per_rev: float = _check(_positive, default=1920.0)
+    open_delay: float = _check(_non_negative, default=2.0)
+    reconnect_period: float = _check(_positive, default=1.0)
+    keepalive: float = _check(_positive, default=0.5)
+
+
 @dataclass
 class DriveConfig:
     """The motor driver that turns ``/cmd_vel`` into wheel commands."""
 
     backend: Literal["none", "l298n", "serial", "sim"] = "none"
+    cmd_vel_topic: str = "cmd_vel"
+    odom_topic: str = "odom"
+    cmd_vel_timeout: float = _check(_positive, default=0.5)
+    odom_rate: float = _check(_positive, default=20.0)
+    control_rate: float = _check(_positive, default=50.0)
+    publish_tf: bool = True
+    track_width: float = _check(_positive, default=0.2)
+    track_multiplier: float = _check(_positive, default=1.0)
+    wheel_radius: float = _check(_positive, default=0.0325)
+    max_wheel_speed: float = _check(_positive, default=0.5)
+    min_duty: float = _check(_fraction, default=0.3)
+    max_duty: float = _check(_fraction, default=1.0)
+    max_linear: float = _check(_positive, default=0.4)
+    max_angular: float = _check(_positive, default=2.0)
+    max_linear_accel: float = _check(_non_negative, default=1.0)
+    max_angular_accel: float = _check(_non_negative, default=4.0)
+    l298n: L298nConfig = field(default_factory=L298nConfig)
+    serial: SerialDriveConfig = field(default_factory=SerialDriveConfig)
 
 
 @dataclass
