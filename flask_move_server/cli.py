@@ -17,7 +17,7 @@ import sys
 
 from flask_move_server import __version__
 from flask_move_server import config as config_mod
-from flask_move_server.errors import ConfigError, WaypointFileError
+from flask_move_server.errors import ConfigError, DriveError, WaypointFileError
 
 log = logging.getLogger("flask_move_server")
 
@@ -159,14 +159,14 @@ class Server:
         return self
 
     def _build_robot(self, stack):
-        from flask_move_server.drive import NoDrive
+        from flask_move_server.drive import make_drive
         from flask_move_server.ros.node import RosNode
 
         cfg = self.config
         node = RosNode(cfg.ros.node_name, cfg.ros.master_check_period, cfg.ros.exit_on_new_master, self.fatal)
         stack.callback(node.close)
-        drive = NoDrive()
-        stack.callback(drive.close)
+        drive = make_drive(cfg.drive, node, cfg.ros.frames, source=cfg.source)
+        stack.callback(drive.close)  # SIGTERM → ExitStack → motors stopped, pins released
         robot = build_robot(cfg, node, drive)
         stack.callback(robot.close)
         self._node = node
@@ -241,6 +241,9 @@ def main(argv=None):
     except (ConfigError, WaypointFileError) as exc:
         server.close()
         return _refuse(exc, EXIT_CONFIG)
+    except DriveError as exc:
+        server.close()
+        return _refuse("cannot drive the motors: {}".format(exc), EXIT_FAILURE)
     except OSError as exc:
         server.close()
         return _refuse("cannot start: {}".format(exc), EXIT_FAILURE)
