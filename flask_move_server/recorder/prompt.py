@@ -1,0 +1,75 @@
+"""The recorder's terminal loop: lines typed, RViz clicks, and a safe Ctrl-C.
+
+Every save runs with SIGINT deferred: a Ctrl-C that lands mid-save takes
+effect right after it, so the waypoints file (or the server) always holds
+every change the recorder reported, whole.
+"""
+
+import contextlib
+import os
+import select
+import signal
+import threading
+import time
+
+from flask_move_server.errors import MoveServerError
+
+
+@contextlib.contextmanager
+def interrupts_deferred():
+    """Hold back Ctrl-C (SIGINT) until the block is done, then raise KeyboardInterrupt."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    caught = []
+    previous = signal.signal(signal.SIGINT, lambda signum, frame: caught.append(signum))
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+    if caught:
+        raise KeyboardInterrupt
+
+
+def run(session, fd, refresh_period=2.0, poll=0.1):
+    """Feed ``session`` the lines read from ``fd`` and the queued clicks until it quits or input ends."""
+    pending = b""
+    refresher = _Refresher(session, refresh_period)
+    while session.running:
+        with interrupts_deferred():
+            session.handle_clicks()
+            refresher.maybe()
+        ready, _, _ = select.select([fd], [], [], poll)
+        if not ready:
+            continue
+        data = os.read(fd, 4096)
+        if not data:  # end of input (Ctrl-D, or a closed pipe)
+            return
+        pending += data
+        while b"\n" in pending and session.running:
+            line, pending = pending.split(b"\n", 1)
+            with interrupts_deferred():
+                session.handle_line(line.decode("utf-8", "replace"))
+
+
+class _Refresher:
+    """Re-reads the saved waypoints now and then, so RViz shows others' edits too."""
+
+    def __init__(self, session, period):
+        self.session, self.period = session, period
+        self.next_time = 0.0
+        self.problem = None
+
+    def maybe(self):
+        now = time.monotonic()
+        if now < self.next_time:
+            return
+        self.next_time = now + self.period
+        try:
+            self.session.refresh()
+        except MoveServerError as exc:
+            if str(exc) != self.problem:
+                self.session.say("Cannot read the waypoints: {}".format(exc))
+            self.problem = str(exc)
+        else:
+            self.problem = None

@@ -1,0 +1,108 @@
+"""The recorder's ROS side: the robot's pose, RViz clicks, and why a pose is missing.
+
+Built on an already-initialised rospy node (the recorder's own, or a test's),
+so it can run beside other parts in one process. Clicks arrive on rospy's
+threads and are only queued here; the session saves them from its own thread.
+"""
+
+import math
+import queue
+
+import rospy
+import tf2_ros
+from geometry_msgs.msg import PointStamped, PoseStamped, PoseWithCovarianceStamped
+
+from flask_move_server.errors import NoPose
+from flask_move_server.geometry import Pose2D, normalize_angle, quaternion_to_yaw
+
+_TF_ERRORS = (tf2_ros.LookupException, tf2_ros.ConnectivityException, tf2_ros.ExtrapolationException)
+
+
+class Click:
+    """A place marked in RViz: its pose in the map frame and which tool marked it."""
+
+    def __init__(self, pose, tool):
+        self.pose, self.tool = pose, tool
+
+
+class RosSide:
+    """tf, ``/amcl_pose`` and the RViz topics of one recorder."""
+
+    def __init__(self, map_frame="map", base_frame="base_link", amcl_topic="amcl_pose",
+                 clicked_topic="/clicked_point", goal_topic="/waypoint_goal"):
+        self.map_frame, self.base_frame = map_frame, base_frame
+        self.clicks = queue.Queue()
+        self.problems = queue.Queue()  # clicks that could not be placed in the map, as sentences
+        self._amcl = None
+        self._buffer = tf2_ros.Buffer(cache_time=rospy.Duration(10.0))
+        self._listener = tf2_ros.TransformListener(self._buffer)
+        self._subs = [
+            rospy.Subscriber(amcl_topic, PoseWithCovarianceStamped, self._on_amcl, queue_size=1),
+            rospy.Subscriber(clicked_topic, PointStamped, self._on_point, queue_size=10),
+            rospy.Subscriber(goal_topic, PoseStamped, self._on_goal, queue_size=10),
+        ]
+
+    # the robot's pose ------------------------------------------------------------
+
+    def current_pose(self):
+        """The robot's pose in the map frame (tf, else AMCL); NoPose saying why not."""
+        try:
+            t = self._buffer.lookup_transform(self.map_frame, self.base_frame, rospy.Time(0))
+        except _TF_ERRORS:
+            if self._amcl is not None:
+                return self._amcl
+            raise NoPose(self.why_no_pose())
+        r, p = t.transform.rotation, t.transform.translation
+        return Pose2D(p.x, p.y, quaternion_to_yaw(r.x, r.y, r.z, r.w))
+
+    def has_map_frame(self):
+        return self._buffer._frameExists(self.map_frame.lstrip("/"))
+
+    def why_no_pose(self):
+        """The sentence telling the user what to start or do."""
+        if not self.has_map_frame():
+            return ("No '{}' frame in tf yet: start the map and localization (map_server + AMCL, "
+                    "roslaunch flask_move_server navigation.launch), then set the robot's pose in RViz "
+                    "with '2D Pose Estimate'. RViz clicks work meanwhile.".format(self.map_frame))
+        return ("tf has '{}' but no path to '{}', and no /amcl_pose came: is AMCL localised and the "
+                "base driver publishing odom -> {}?".format(self.map_frame, self.base_frame, self.base_frame))
+
+    def _on_amcl(self, msg):
+        p, o = msg.pose.pose.position, msg.pose.pose.orientation
+        self._amcl = Pose2D(p.x, p.y, quaternion_to_yaw(o.x, o.y, o.z, o.w))
+
+    # RViz ---------------------------------------------------------------------------
+
+    def _on_point(self, msg):
+        self._queue_click(msg.header.frame_id, msg.point.x, msg.point.y, None, "Publish Point")
+
+    def _on_goal(self, msg):
+        o = msg.pose.orientation
+        yaw = quaternion_to_yaw(o.x, o.y, o.z, o.w)
+        self._queue_click(msg.header.frame_id, msg.pose.position.x, msg.pose.position.y, yaw, "2D Nav Goal")
+
+    def _queue_click(self, frame, x, y, yaw, tool):
+        frame = (frame or self.map_frame).lstrip("/")
+        try:
+            pose = self._in_map(frame, x, y, yaw or 0.0)
+        except _TF_ERRORS:
+            self.problems.put("A click in frame '{}' cannot be placed in '{}' (no tf between them): set "
+                              "RViz's Fixed Frame to '{}'.".format(frame, self.map_frame, self.map_frame))
+            return
+        self.clicks.put(Click(pose, tool))
+
+    def _in_map(self, frame, x, y, yaw):
+        if frame == self.map_frame.lstrip("/"):
+            return Pose2D(x, y, yaw)
+        t = self._buffer.lookup_transform(self.map_frame, frame, rospy.Time(0))
+        r, p = t.transform.rotation, t.transform.translation
+        turn = quaternion_to_yaw(r.x, r.y, r.z, r.w)
+        c, s = math.cos(turn), math.sin(turn)
+        return Pose2D(p.x + c * x - s * y, p.y + s * x + c * y, normalize_angle(yaw + turn))
+
+    def close(self):
+        """Unsubscribe. Idempotent."""
+        for sub in self._subs:
+            sub.unregister()
+        self._subs = []
+        self._listener.unregister()
