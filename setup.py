@@ -40,6 +40,7 @@ setup(
         "console_scripts": [
             "flask-move-server = flask_move_server.cli:main",
             "robotctl = flask_move_server.client:main",
+            "flask-move-base = flask_move_server.drive.__main__:main",
             "record-waypoints = flask_move_server.recorder:main",
         ],
     },

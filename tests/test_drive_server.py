@@ -83,3 +83,46 @@ def test_losing_the_master_stops_the_motors(tmp_path, master, servers):
     stopped = wait_for(lambda: server.motors()["left"] == 0.0 and server.motors(), message="the motors to stop")
     assert stopped["watchdog_tripped"] is True and stopped["right"] == 0.0
     assert server.get("/health").json()["ros"] == "lost"
+
+
+def test_the_base_controller_runs_alone_for_mapping(ros_node, ros_master, unique_name):
+    import subprocess
+    import sys
+
+    import rospy
+    from geometry_msgs.msg import Twist
+    from nav_msgs.msg import Odometry
+
+    from tests.conftest import ROOT
+
+    odom_topic, cmd_topic = "/{}/odom".format(unique_name), "/{}/cmd_vel".format(unique_name)
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "flask_move_server.drive", "--motor-backend", "sim",
+         "__name:=" + unique_name + "_base", "cmd_vel:=" + cmd_topic, "odom:=" + odom_topic],
+        cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    odoms = []
+    sub = rospy.Subscriber(odom_topic, Odometry, odoms.append)
+    pub = rospy.Publisher(cmd_topic, Twist, queue_size=1)
+    try:
+        wait_for(lambda: odoms and pub.get_num_connections() > 0, timeout=30, message="the base node")
+        msg = Twist()
+        msg.linear.x = 0.3
+        wait_for(lambda: (pub.publish(msg) or True) and odoms[-1].pose.pose.position.x > 0.02,
+                 timeout=15, interval=0.1, message="the robot to move in odometry")
+        proc.terminate()
+        assert proc.wait(15) == 0
+    finally:
+        sub.unregister()
+        pub.unregister()
+        stop_process(proc)
+
+
+def test_the_base_controller_alone_refuses_backend_none():
+    import subprocess
+    import sys
+
+    from tests.conftest import ROOT
+
+    result = subprocess.run([sys.executable, "-m", "flask_move_server.drive"], cwd=ROOT,
+                            capture_output=True, text=True, timeout=60)
+    assert result.returncode == 2 and "drive.backend" in result.stderr and "--motor-backend" in result.stderr
