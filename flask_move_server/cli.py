@@ -175,6 +175,10 @@ class Server:
 
     def serve(self):
         """Serve until SIGTERM/SIGINT (or :meth:`fatal`); returns the exit status."""
+        from flask_move_server import systemd
+
+        # Under systemd: READY=1 once /health answers, WATCHDOG=1 while it does, STOPPING=1 first on close.
+        self._stack.callback(systemd.Supervisor(self.config.server.host, self.port).start().close)
         try:
             self.http.run()
         finally:

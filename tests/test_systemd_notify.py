@@ -1,0 +1,165 @@
+"""sd_notify through a real AF_UNIX datagram socket, as systemd's notify socket works.
+
+The server process (started like systemd starts it, with $NOTIFY_SOCKET and $WATCHDOG_USEC)
+must say READY=1 only when HTTP answers, ping WATCHDOG=1 while it serves, and STOPPING=1 on
+SIGTERM. In-process, a dead HTTP server must stop the pings. safe-stop drives the L298N pins
+low through the recording RPi.GPIO stand-in.
+"""
+
+import re
+import signal
+import socket
+import time
+
+import pytest
+import requests
+
+from flask_move_server import systemd
+from tests.conftest import run_cli, serve, stop_process, wait_for
+from tests.standins.gpio import RecordingGPIO
+
+
+@pytest.fixture
+def notify_socket(tmp_path):
+    sock = socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM)
+    path = str(tmp_path / "notify")
+    sock.bind(path)
+    sock.settimeout(0.2)
+    yield path, sock
+    sock.close()
+
+
+def receive(sock, want, timeout=30.0):
+    """Datagrams until one contains ``want``; returns them all (each a list of lines)."""
+    got = []
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        try:
+            got.append(sock.recv(4096).decode().split("\n"))
+        except socket.timeout:
+            continue
+        if want in got[-1]:
+            return got
+    raise AssertionError("no {} within {}s; got {}".format(want, timeout, got))
+
+
+def test_server_notifies_ready_watchdog_and_stopping(notify_socket, ros_master):
+    path, sock = notify_socket
+    proc = run_cli("--host", "127.0.0.1", "--port", "0", "--no-mdns", "--motor-backend", "none",
+                   env={"NOTIFY_SOCKET": path, "WATCHDOG_USEC": "1000000"})
+    try:
+        before_ready = receive(sock, "READY=1")
+        assert all("WATCHDOG=1" not in m for m in before_ready)
+        port = _port_from_log(proc)
+        # READY means serving: the very next request is answered.
+        assert requests.get("http://127.0.0.1:{}/health".format(port), timeout=5).status_code == 200
+        receive(sock, "WATCHDOG=1")
+        receive(sock, "WATCHDOG=1")  # keeps pinging (every 0.5 s for a 1 s watchdog)
+        proc.send_signal(signal.SIGTERM)
+        receive(sock, "STOPPING=1")
+        assert proc.wait(30) == 0
+    finally:
+        stop_process(proc)
+
+
+def _port_from_log(proc):
+    lines = []
+
+    def port():
+        lines.append(proc.stderr.readline())
+        match = re.search(r"serving the API on http://[^:]+:(\d+)", lines[-1])
+        return match and int(match.group(1))
+
+    return wait_for(port, timeout=30, message="the server's port in its log")
+
+
+def test_no_watchdog_pings_while_http_is_dead(notify_socket):
+    path, sock = notify_socket
+
+    def app(environ, start_response):
+        start_response("200 OK", [("Content-Type", "application/json")])
+        return [b'{"status": "ok"}']
+
+    notifier = systemd.Notifier({"NOTIFY_SOCKET": path})
+    with serve(app) as url:
+        port = int(url.rsplit(":", 1)[1])
+        supervisor = systemd.Supervisor("127.0.0.1", port, notifier, interval=0.4).start()
+        try:
+            receive(sock, "READY=1")
+            receive(sock, "WATCHDOG=1")
+        except BaseException:
+            supervisor.close()
+            raise
+    # The HTTP server is closed now: drain what was in flight, then expect silence.
+    time.sleep(0.5)
+    _drain(sock)
+    time.sleep(1.0)
+    assert _drain(sock) == []
+    supervisor.close()
+    assert "STOPPING=1" in receive(sock, "STOPPING=1")[-1]
+    supervisor.close()  # idempotent
+
+
+def _drain(sock):
+    got = []
+    while True:
+        try:
+            got.append(sock.recv(4096).decode())
+        except socket.timeout:
+            return got
+
+
+def test_nothing_happens_outside_systemd():
+    notifier = systemd.Notifier({})
+    assert not notifier.enabled and notifier.notify("READY=1") is False
+    supervisor = systemd.Supervisor("127.0.0.1", 1, notifier).start()
+    supervisor.close()
+    assert not supervisor.ready
+
+
+def test_abstract_socket_names_and_watchdog_env():
+    assert systemd.Notifier({"NOTIFY_SOCKET": "@sd/notify"}).address == "\0sd/notify"
+    assert systemd.watchdog_interval({"WATCHDOG_USEC": "4000000"}) == 4.0
+    assert systemd.watchdog_interval({"WATCHDOG_USEC": "4000000", "WATCHDOG_PID": "1"}) is None
+    assert systemd.watchdog_interval({}) is None
+
+
+def test_safe_stop_drives_every_bridge_pin_low(tmp_path):
+    config = tmp_path / "robot.yaml"
+    config.write_text("drive:\n  backend: l298n\n  l298n:\n    left: [{in1: 5, in2: 6, en: 26}]\n"
+                      "    right: [{in1: 7, in2: 8, en: 9}]\n")
+    gpio = RecordingGPIO()
+    gpio.setmode(gpio.BCM)
+    gpio.setup(26, gpio.OUT, initial=gpio.HIGH)  # as a crashed server may leave it
+    pins = systemd.safe_stop(str(config), gpio)
+    assert sorted(pins) == [5, 6, 7, 8, 9, 26]
+    assert {pin: gpio.outputs[pin] for pin in pins} == {pin: gpio.LOW for pin in pins}
+    assert not gpio.cleaned  # held low as outputs, not released to float
+
+
+def test_safe_stop_does_nothing_for_other_backends(tmp_path):
+    config = tmp_path / "robot.yaml"
+    config.write_text("drive:\n  backend: sim\n")
+    gpio = RecordingGPIO()
+    assert systemd.safe_stop(str(config), gpio) == []
+    assert gpio.calls == []
+
+
+def test_safe_stop_falls_back_to_default_pins_on_a_broken_config(tmp_path):
+    config = tmp_path / "robot.yaml"
+    config.write_text("drive: {backend: l298n, typo: 1}\n")
+    gpio = RecordingGPIO()
+    pins = systemd.safe_stop(str(config), gpio)
+    assert set(pins) == {17, 27, 22, 23, 24, 25, 12, 13, 19, 16, 20, 21}
+    assert all(gpio.outputs[p] == gpio.LOW for p in pins)
+
+
+def test_safe_stop_command(tmp_path):
+    import subprocess
+    import sys
+
+    config = tmp_path / "robot.yaml"
+    config.write_text("drive:\n  backend: none\n")
+    proc = subprocess.run([sys.executable, "-m", "flask_move_server.systemd", "safe-stop", "--config", str(config)],
+                          capture_output=True, text=True, timeout=60)
+    assert proc.returncode == 0 and "no L298N pins" in proc.stdout
