@@ -36,10 +36,11 @@ def run(session, fd, refresh_period=2.0, poll=0.1):
     pending = b""
     refresher = _Refresher(session, refresh_period)
     while session.running:
+        with interrupts_deferred():  # one save at a time, so Ctrl-C lands between saves
+            more_clicks = session.handle_clicks(limit=1)
         with interrupts_deferred():
-            session.handle_clicks()
             refresher.maybe()
-        ready, _, _ = select.select([fd], [], [], poll)
+        ready, _, _ = select.select([fd], [], [], 0 if more_clicks else poll)
         if not ready:
             continue
         data = os.read(fd, 4096)

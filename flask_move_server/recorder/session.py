@@ -57,17 +57,21 @@ class Session:
             self._guard(self._command, line)
         return self.running
 
-    def handle_clicks(self):
-        """Take the RViz clicks queued by the ROS side: name them, or ask for a name."""
+    def handle_clicks(self, limit=None):
+        """Take up to ``limit`` queued RViz clicks: name them, or ask for a name; True if more wait."""
         while not self.ros.problems.empty():
             self.say(self.ros.problems.get_nowait())
-        while self.awaiting is None and not self.ros.clicks.empty():
+        count = self.ros.clicks.qsize() if limit is None else limit
+        for _ in range(count):
+            if self.awaiting is not None or self.ros.clicks.empty():
+                break
             click = self.ros.clicks.get_nowait()
             if self.auto_names:
                 self._guard(self.save, self.next_auto_name(), click.pose, "clicked")
             else:
                 self.awaiting = click
                 self.say("{} at {}. Name it (empty line skips):".format(click.tool, _where(click.pose)))
+        return self.awaiting is None and not self.ros.clicks.empty()
 
     def refresh(self):
         """Show the saved waypoints in RViz (others may have changed them)."""
