@@ -256,9 +256,16 @@ def _field(robot, name):
 # the command line ------------------------------------------------------------------
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse, with a usage error as one line (the full usage is one --help away)."""
+
+    def error(self, message):
+        self.exit(ExitStatus.USAGE, "{}: error: {} ({} --help shows the usage)\n".format(self.prog, message, self.prog))
+
+
 def build_parser():
     """robotctl's argparse parser."""
-    parser = argparse.ArgumentParser(prog="robotctl", description="Command a flask-move-server robot.")
+    parser = _Parser(prog="robotctl", description="Command a flask-move-server robot.")
     parser.add_argument("--url", default=os.environ.get("ROBOT_URL") or DEFAULT_URL,
                         help="the robot's address (env ROBOT_URL; default %(default)s)")
     parser.add_argument("--token", default=os.environ.get("ROBOT_TOKEN") or None,

@@ -267,11 +267,14 @@ def test_debug_shows_the_traceback(capsys):
     assert "Traceback" in err and err.rstrip().endswith("then pass --url or set ROBOT_URL.")
 
 
-def test_usage_errors_exit_2(capsys):
-    assert client.main([]) == ExitStatus.USAGE
-    assert client.main(["fly"]) == ExitStatus.USAGE
-    assert client.main(["--request-timeout", "0", "stop"]) == ExitStatus.USAGE
-    assert "invalid choice" in capsys.readouterr().err
+def test_usage_errors_exit_2_with_one_line(capsys):
+    for argv, says in (([], "the following arguments are required: COMMAND"),
+                       (["fly"], "invalid choice: 'fly'"),
+                       (["--request-timeout", "0", "stop"], "'0' must be greater than 0"),
+                       (["goto"], "robotctl goto: error: the following arguments are required: name")):
+        assert client.main(argv) == ExitStatus.USAGE
+        err = capsys.readouterr().err
+        assert says in err and err.endswith("--help shows the usage)\n") and len(err.splitlines()) == 1
 
 
 def test_goto_wait_polls_rather_than_blocking(live):
