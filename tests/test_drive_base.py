@@ -179,3 +179,24 @@ def test_sim_wheel_speeds_invert_the_duty_mapping(topics):
     backend = SimBackend(config)
     backend.set(config.min_duty * 0.9, -config.max_duty)
     assert backend.wheel_speeds() == (0.0, -config.max_wheel_speed)
+
+
+def test_a_failing_backend_is_reported_and_leaves_the_motors_off(ros_node, topics):
+    from flask_move_server.drive.backends.l298n import L298NBackend
+    from tests.standins.gpio import RecordingGPIO
+
+    config, frames = topics
+    gpio = RecordingGPIO()
+    base = make_drive(config, ros_node, frames, backend=L298NBackend(config, gpio=gpio))
+    try:
+        gpio.fail_on = "pwm_duty"
+        base.command(0.3, 0.0)
+        status = wait_for(lambda: base.status()["error"] and base.status(), message="the failure in /status")
+        assert "switched off" in status["error"] and status["left"] == 0.0 and status["right"] == 0.0
+        gpio.fail_on = None
+        assert gpio.outputs == {}  # every pin released
+        base.command(0.3, 0.0)
+        status = base.status()
+        assert status["left"] == 0.0 and not status["connected"] and gpio.outputs == {}  # nothing drives the pins
+    finally:
+        base.close()

@@ -104,8 +104,8 @@ class BaseController:
     def _apply(self):
         try:
             self.backend.set(*self.motion.commands)
-        except DriveError as exc:
-            self._fault = str(exc)
+        except Exception as exc:  # a failing backend is reported in /status, never fatal to the threads
+            self._fault = str(exc) if isinstance(exc, DriveError) else "{}: {}".format(type(exc).__name__, exc)
             log.error("motor backend %s failed: %s", self.backend.name, exc)
             self.motion.halt()
 
@@ -113,7 +113,7 @@ class BaseController:
         """Open-loop odometry: the velocity in force since the last call, up to ``now``."""
         if self.odometry.source == OPEN_LOOP:
             self.odometry.advance(*self.motion.actual_velocity(), now - self._last_odom)
-        self._last_odom = now
+            self._last_odom = now
 
     # threads ------------------------------------------------------------------------
 
@@ -150,7 +150,9 @@ class BaseController:
                     wake = next_odom if self.motion.settled else min(next_odom, self._last_step + control_period)
                     self._cond.wait(max(wake - now, 0.0))
                     continue
-                next_odom = max(next_odom + odom_period, now)
+                next_odom += odom_period
+                if next_odom < now:  # fell behind (a slow serial read): skip, do not burst
+                    next_odom = now + odom_period
             self._odometry_tick()
 
     def _odometry_tick(self):

@@ -163,6 +163,7 @@ class L298NBackend(MotorBackend):
         if self._closed:
             return
         self._closed = True
+        self.connected = False  # nothing drives the bridges any more: /status reports 0
         for channels in self.sides.values():
             for channel in channels:
                 channel.release()
