@@ -152,6 +152,8 @@ class Server:
         app = create_app(self.config, robot, store, token=self.config.resolved_token())
         self.http = _http_server(app, self.config.server)
         stack.callback(self.http.close)
+        # Closed first: a /goto still waiting for its goal answers now, so waitress stops at once.
+        stack.callback(robot.stop)
         self.port = int(self.http.effective_port)
         log.info("serving the API on http://%s:%d (waypoints: %s, %d loaded)",
                  self.config.server.host, self.port, store.path, len(store.all()))
@@ -163,15 +165,29 @@ class Server:
         from flask_move_server.ros.node import RosNode
 
         cfg = self.config
+        if cfg.sim.enabled:
+            self._own_master(stack)
         node = RosNode(cfg.ros.node_name, cfg.ros.master_check_period, cfg.ros.exit_on_new_master, self.fatal)
         stack.callback(node.close)
         drive = make_drive(cfg.drive, node, cfg.ros.frames, source=cfg.source)
         stack.callback(drive.close)  # SIGTERM → ExitStack → motors stopped, pins released
+        if cfg.sim.enabled:
+            from flask_move_server.sim.runner import Simulation
+
+            stack.callback(Simulation(cfg, node, drive).close)
         robot = build_robot(cfg, node, drive)
         stack.callback(robot.close)
         self._node = node
         self.robot = robot
         return robot
+
+    def _own_master(self, stack):
+        """``--sim``: start a ROS master when none answers at ROS_MASTER_URI; it is stopped last."""
+        from flask_move_server.sim.runner import OwnMaster
+
+        own = OwnMaster.ensure()
+        if own is not None:
+            stack.callback(own.close)
 
     def serve(self):
         """Serve until SIGTERM/SIGINT (or :meth:`fatal`); returns the exit status."""

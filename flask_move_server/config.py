@@ -36,6 +36,10 @@ def _port(value):
     return None if 0 <= value <= 65535 else "must be a TCP port, 0 to 65535"
 
 
+def _speed_factor(value):
+    return None if 0 < value <= 20 else "must be above 0 and at most 20 (simulated seconds per real second)"
+
+
 def _check(check, **kw):
     return field(metadata={"check": check}, **kw)
 
@@ -194,6 +198,19 @@ class SimConfig:
 
     enabled: bool = False
     map: Optional[str] = _path(default=None)
+    speed_factor: float = _check(_speed_factor, default=1.0)
+    robot_radius: float = _check(_positive, default=0.15)
+    safety_margin: float = _check(_non_negative, default=0.1)
+    rate: float = _check(_positive, default=50.0)
+    scan_rate: float = _check(_non_negative, default=5.5)
+    control_rate: float = _check(_positive, default=20.0)
+    max_linear: float = _check(_positive, default=0.3)
+    max_angular: float = _check(_positive, default=1.2)
+    xy_goal_tolerance: float = _check(_positive, default=0.1)
+    yaw_goal_tolerance: float = _check(_positive, default=0.2)
+    stuck_timeout: float = _check(_positive, default=10.0)
+    map_topic: str = "map"
+    scan_topic: str = "scan"
 
 
 @dataclass

@@ -116,3 +116,13 @@ class ClientError(MoveServerError, RuntimeError):
     def __init__(self, message, exit_status=1):
         self.exit_status = exit_status
         super().__init__(message)
+
+
+class PlanningFailed(MoveServerError, RuntimeError):
+    """The simulated move_base found no path to a goal (outside the map, occupied or walled off)."""
+
+    code = "planning_failed"
+
+    def __init__(self, reason, message):
+        self.reason = reason
+        super().__init__(message)

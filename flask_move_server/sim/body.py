@@ -1,0 +1,85 @@
+"""The simulated robot's true motion: wheel speeds in, pose in the map frame out, walls in the way.
+
+A round skid-steer robot: its ground speeds ``left`` and ``right`` (m/s) give
+``v = (left + right) / 2`` and ``w = (right - left) / track``, integrated
+along the exact arc. Long steps are cut into pieces shorter than half a cell,
+so the robot cannot tunnel through a thin wall; a piece that would put the
+body into an obstacle is not taken (the robot turns but does not move, as a
+bumper-stopped base would). Pure: no rospy.
+"""
+
+import math
+import threading
+
+from flask_move_server.geometry import Pose2D, normalize_angle
+
+
+class RobotBody:
+    """Where the simulated robot really is, and whether it is pressed against something."""
+
+    def __init__(self, costmap, track, pose=None):
+        self.costmap = costmap
+        self.track = track
+        self._pose = pose or Pose2D(0.0, 0.0, 0.0)
+        self._lock = threading.Lock()
+        self.bumped = False
+        self.distance = 0.0  # metres really travelled, for tests and benchmarks
+
+    @property
+    def pose(self):
+        with self._lock:
+            return self._pose
+
+    def step(self, left, right, dt):
+        """Move for ``dt`` seconds at wheel ground speeds ``left``, ``right``; returns the new pose."""
+        v = (left + right) / 2.0
+        w = (right - left) / self.track
+        pieces = max(1, int(math.ceil(abs(v * dt) / (self.costmap.resolution / 2.0))))
+        h = dt / pieces
+        with self._lock:
+            pose = self._pose
+            bumped = False
+            for _ in range(pieces):
+                moved = _arc(pose, v * h, w * h)
+                if self.costmap.lethal_at(moved.x, moved.y):
+                    bumped = True
+                    moved = Pose2D(pose.x, pose.y, moved.yaw)
+                self.distance += math.hypot(moved.x - pose.x, moved.y - pose.y)
+                pose = moved
+            self._pose, self.bumped = pose, bumped
+            return pose
+
+    def place(self, pose):
+        """Put the robot at ``pose`` (a Pose2D), as if carried there."""
+        with self._lock:
+            self._pose = pose
+
+
+def _arc(pose, ds, dth):
+    """``pose`` after travelling ``ds`` metres while turning ``dth`` radians (exact arc, midpoint when straight)."""
+    if abs(dth) < 1e-6:
+        mid = pose.yaw + dth / 2.0
+        x, y = pose.x + ds * math.cos(mid), pose.y + ds * math.sin(mid)
+    else:
+        r = ds / dth
+        x = pose.x + r * (math.sin(pose.yaw + dth) - math.sin(pose.yaw))
+        y = pose.y - r * (math.cos(pose.yaw + dth) - math.cos(pose.yaw))
+    return Pose2D(x, y, normalize_angle(pose.yaw + dth))
+
+
+def compose(a, b):
+    """The pose ``b`` (given in ``a``'s frame) in ``a``'s parent frame: a ∘ b."""
+    c, s = math.cos(a.yaw), math.sin(a.yaw)
+    return Pose2D(a.x + c * b.x - s * b.y, a.y + s * b.x + c * b.y, normalize_angle(a.yaw + b.yaw))
+
+
+def inverse(a):
+    """The inverse transform of pose ``a``: a ∘ inverse(a) is the identity."""
+    c, s = math.cos(a.yaw), math.sin(a.yaw)
+    return Pose2D(-c * a.x - s * a.y, s * a.x - c * a.y, normalize_angle(-a.yaw))
+
+
+def interpolate(a, b, t):
+    """The pose a fraction ``t`` (0..1) of the way from ``a`` to ``b``."""
+    dyaw = normalize_angle(b.yaw - a.yaw)
+    return Pose2D(a.x + (b.x - a.x) * t, a.y + (b.y - a.y) * t, normalize_angle(a.yaw + dyaw * t))

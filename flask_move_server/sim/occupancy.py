@@ -1,0 +1,205 @@
+"""Occupancy maps in map_server's format: a PGM image and a YAML description.
+
+The YAML keys are map_server's (``image``, ``resolution``, ``origin``,
+``negate``, ``occupied_thresh``, ``free_thresh``, ``mode``) and a pixel becomes
+a cell value the way map_server computes it: ``p = (255 - pixel) / 255``
+(``pixel`` itself when ``negate``), above ``occupied_thresh`` → 100, below
+``free_thresh`` → 0, otherwise -1 (unknown) in ``trinary`` mode, scaled to
+1..99 in ``scale`` mode; ``raw`` keeps the pixel value. Row 0 of the image is
+the top of the map, row 0 of the grid the bottom (``origin`` is the pose of
+the lower-left cell), as in ``nav_msgs/OccupancyGrid``.
+
+Pure: no rospy. A bad file raises ConfigError naming the file, key and reason.
+"""
+
+import math
+import os
+from dataclasses import dataclass
+
+import yaml
+
+from flask_move_server.errors import ConfigError
+
+OCCUPIED, FREE, UNKNOWN = 100, 0, -1
+MODES = ("trinary", "scale", "raw")
+
+
+@dataclass
+class OccupancyMap:
+    """A grid of cell values (-1 unknown, 0 free .. 100 occupied), bottom row first."""
+
+    width: int
+    height: int
+    resolution: float
+    origin_x: float
+    origin_y: float
+    cells: list
+    source: str = "(map)"
+
+    def cell_of(self, x, y):
+        """The (column, row) holding the point (x, y) in the map frame, or None outside the map."""
+        col = int(math.floor((x - self.origin_x) / self.resolution))
+        row = int(math.floor((y - self.origin_y) / self.resolution))
+        if 0 <= col < self.width and 0 <= row < self.height:
+            return col, row
+        return None
+
+    def center_of(self, col, row):
+        """The map-frame point at the centre of a cell."""
+        return (self.origin_x + (col + 0.5) * self.resolution, self.origin_y + (row + 0.5) * self.resolution)
+
+    def value_at(self, x, y):
+        """The cell value under (x, y); None outside the map."""
+        cell = self.cell_of(x, y)
+        return None if cell is None else self.cells[cell[1] * self.width + cell[0]]
+
+    def blocked(self):
+        """A bytearray, 1 per cell the robot cannot enter: occupied (>= 50) or unknown."""
+        return bytearray(1 if (v < 0 or v >= 50) else 0 for v in self.cells)
+
+    @property
+    def size_m(self):
+        return self.width * self.resolution, self.height * self.resolution
+
+
+def load(yaml_path):
+    """Read a map_server map (YAML + PGM) into an :class:`OccupancyMap`."""
+    meta = _read_meta(yaml_path)
+    image_path = os.path.join(os.path.dirname(os.path.abspath(yaml_path)), meta["image"])
+    try:
+        with open(image_path, "rb") as f:
+            width, height, pixels = parse_pgm(f.read())
+    except OSError as exc:
+        raise ConfigError(yaml_path, "image", "cannot read {}: {}".format(image_path, exc.strerror))
+    except ValueError as exc:
+        raise ConfigError(yaml_path, "image", "{}: {}".format(image_path, exc))
+    cells = cells_from_pixels(width, height, pixels, meta)
+    return OccupancyMap(width, height, meta["resolution"], meta["origin"][0], meta["origin"][1], cells,
+                        source=str(yaml_path))
+
+
+def _read_meta(path):
+    try:
+        with open(path, encoding="utf-8") as f:
+            meta = yaml.safe_load(f)
+    except OSError as exc:
+        raise ConfigError(path, None, "cannot read the map: {}".format(exc.strerror))
+    except yaml.YAMLError as exc:
+        raise ConfigError(path, None, "not valid YAML: {}".format(" ".join(str(exc).split())))
+    if not isinstance(meta, dict):
+        raise ConfigError(path, None, "a map_server map YAML must be a mapping (image:, resolution:, origin:, ...)")
+    return _check_meta(path, meta)
+
+
+def _number(path, meta, key, default=None):
+    value = meta.get(key, default)
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        raise ConfigError(path, key, "must be a finite number, got {!r}".format(value))
+    return float(value)
+
+
+def _check_meta(path, meta):
+    for key in ("image", "resolution", "origin"):
+        if key not in meta:
+            raise ConfigError(path, key, "missing (map_server needs image, resolution and origin)")
+    if not isinstance(meta["image"], str) or not meta["image"]:
+        raise ConfigError(path, "image", "must be the image file name, got {!r}".format(meta["image"]))
+    origin = meta["origin"]
+    if not isinstance(origin, list) or len(origin) != 3:
+        raise ConfigError(path, "origin", "must be [x, y, yaw], got {!r}".format(origin))
+    origin = [_number(path, {"origin": v}, "origin") for v in origin]
+    if abs(origin[2]) > 1e-9:
+        raise ConfigError(path, "origin", "the simulator needs an unrotated map (yaw 0), got yaw {}".format(origin[2]))
+    checked = {
+        "image": meta["image"],
+        "resolution": _number(path, meta, "resolution"),
+        "origin": origin,
+        "negate": meta.get("negate", 0),
+        "occupied_thresh": _number(path, meta, "occupied_thresh", 0.65),
+        "free_thresh": _number(path, meta, "free_thresh", 0.196),
+        "mode": meta.get("mode", "trinary"),
+    }
+    if checked["resolution"] <= 0:
+        raise ConfigError(path, "resolution", "must be greater than 0 (metres per cell)")
+    if checked["negate"] not in (0, 1, True, False):
+        raise ConfigError(path, "negate", "must be 0 or 1, got {!r}".format(checked["negate"]))
+    if checked["mode"] not in MODES:
+        raise ConfigError(path, "mode", "must be one of {}, got {!r}".format(", ".join(MODES), checked["mode"]))
+    if not 0 <= checked["free_thresh"] < checked["occupied_thresh"] <= 1:
+        raise ConfigError(path, "free_thresh", "thresholds must satisfy 0 <= free_thresh < occupied_thresh <= 1")
+    return checked
+
+
+def cells_from_pixels(width, height, pixels, meta):
+    """map_server's pixel → cell rule, flipping rows so the grid's row 0 is the image's bottom row."""
+    negate, mode = bool(meta.get("negate", 0)), meta.get("mode", "trinary")
+    occ_th, free_th = meta.get("occupied_thresh", 0.65), meta.get("free_thresh", 0.196)
+    table = [_cell_value(p, negate, mode, occ_th, free_th) for p in range(256)]
+    cells = []
+    for row in range(height - 1, -1, -1):
+        start = row * width
+        cells.extend(table[p] for p in pixels[start:start + width])
+    return cells
+
+
+def _cell_value(pixel, negate, mode, occ_th, free_th):
+    if mode == "raw":
+        return pixel
+    occ = (pixel if negate else 255 - pixel) / 255.0
+    if occ > occ_th:
+        return OCCUPIED
+    if occ < free_th:
+        return FREE
+    if mode == "scale":
+        return 1 + int(98 * (occ - free_th) / (occ_th - free_th))
+    return UNKNOWN
+
+
+def parse_pgm(data):
+    """(width, height, pixels 0..255 top row first) of a binary (P5) or ASCII (P2) PGM."""
+    magic = data[:2]
+    if magic not in (b"P5", b"P2"):
+        raise ValueError("not a PGM image (P5 or P2); convert it with e.g. `convert map.png map.pgm`")
+    tokens, pos = _header_tokens(data, 3)
+    width, height, maxval = tokens
+    if width <= 0 or height <= 0 or not 0 < maxval < 65536:
+        raise ValueError("bad PGM header {} x {}, maxval {}".format(width, height, maxval))
+    count = width * height
+    if magic == b"P2":
+        values = [int(v) for v in data[pos:].split()[:count]]
+    elif maxval < 256:
+        values = list(data[pos + 1:pos + 1 + count])
+    else:
+        raw = data[pos + 1:pos + 1 + 2 * count]
+        values = [(raw[i] << 8) | raw[i + 1] for i in range(0, len(raw) - 1, 2)]
+    if len(values) < count:
+        raise ValueError("truncated PGM: {} of {} pixels".format(len(values), count))
+    if maxval != 255:
+        values = [min(255, v * 255 // maxval) for v in values]
+    return width, height, values
+
+
+def _header_tokens(data, wanted):
+    """The first ``wanted`` integers after the magic number (comments skipped), and where they end."""
+    tokens, pos, n = [], 2, len(data)
+    while len(tokens) < wanted:
+        while pos < n and data[pos:pos + 1].isspace():
+            pos += 1
+        if pos < n and data[pos:pos + 1] == b"#":
+            while pos < n and data[pos:pos + 1] not in (b"\n", b"\r"):
+                pos += 1
+            continue
+        start = pos
+        while pos < n and data[pos:pos + 1].isdigit():
+            pos += 1
+        if start == pos:
+            raise ValueError("bad PGM header")
+        tokens.append(int(data[start:pos]))
+    return tokens, pos
+
+
+def write_pgm(path, width, height, pixels):
+    """Write a binary PGM (P5, maxval 255), top row first, atomically enough for a generated file."""
+    header = "P5\n# flask-move-server\n{} {}\n255\n".format(width, height).encode("ascii")
+    with open(path, "wb") as f:
+        f.write(header + bytes(pixels))

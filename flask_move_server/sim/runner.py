@@ -1,0 +1,140 @@
+"""Wiring of ``--sim``: the ROS master the simulation may own, and the simulation itself.
+
+Everything runs inside the server process and shares its rospy node (rospy
+allows one per process): the world and the move_base stand-in set up their
+topics when the node connects (``RosNode.when_ready``), exactly like the
+navigator and the base controller. ``cli`` builds them after the drive, so
+they read the sim backend the base controller drives.
+"""
+
+import logging
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from urllib.parse import urlparse
+
+from flask_move_server.errors import ConfigError
+from flask_move_server.geometry import Pose2D
+from flask_move_server.ros import master
+
+log = logging.getLogger(__name__)
+
+LOCAL_HOSTS = ("localhost", "127.0.0.1", "::1", "")
+
+
+def default_map():
+    """The shipped demo map: config/maps/demo.yaml in the checkout (or the installed share dir)."""
+    here = os.path.dirname(os.path.abspath(__file__))
+    candidates = [
+        os.path.join(here, "..", "..", "config", "maps", "demo.yaml"),
+        os.path.join(sys.prefix, "share", "flask_move_server", "config", "maps", "demo.yaml"),
+    ]
+    for path in candidates:
+        if os.path.exists(path):
+            return os.path.normpath(path)
+    return os.path.normpath(candidates[0])
+
+
+class Simulation:
+    """The simulated world and the move_base stand-in, built on the server's node and drive."""
+
+    def __init__(self, config, node, drive):
+        from flask_move_server.sim import costmap, laser, occupancy, planner
+        from flask_move_server.sim.body import RobotBody
+        from flask_move_server.sim.move_base import MoveBaseStandIn
+        from flask_move_server.sim.world import SimWorld
+
+        sim = config.sim
+        wheel_speeds = getattr(getattr(drive, "backend", None), "wheel_speeds", None)
+        if wheel_speeds is None:
+            raise ConfigError(config.source, "drive.backend",
+                              "--sim needs the sim motor backend (got {!r})".format(config.drive.backend))
+        self.map_path = sim.map or default_map()
+        grid = occupancy.load(self.map_path)
+        self.costmap = costmap.Costmap(grid, sim.robot_radius, sim.safety_margin)
+        track = config.drive.track_width * config.drive.track_multiplier
+        self.body = RobotBody(self.costmap, track, Pose2D(0.0, 0.0, 0.0))
+        if self.costmap.lethal_at(0.0, 0.0):
+            raise ConfigError(self.map_path, "origin", "the robot starts at x=0, y=0 of the map frame, "
+                              "which is in or too close to an obstacle (or off the map)")
+        self.world = SimWorld(config, node, self.body, laser.Laser(grid), wheel_speeds)
+        self.move_base = MoveBaseStandIn(
+            sim, config.navigation.action, config.drive.cmd_vel_topic, config.navigation.simple_goal_topic,
+            config.ros.frames, node, planner.Planner(self.costmap), follower_limits(sim), self.world.pose)
+
+    def close(self):
+        """Stop the stand-in, then the world. Idempotent."""
+        self.move_base.close()
+        self.world.close()
+
+
+def follower_limits(sim):
+    """The path follower's limits from the ``sim`` config section."""
+    from flask_move_server.sim.follower import FollowerLimits
+
+    return FollowerLimits(max_linear=sim.max_linear, max_angular=sim.max_angular,
+                          xy_goal_tolerance=sim.xy_goal_tolerance, yaw_goal_tolerance=sim.yaw_goal_tolerance)
+
+
+class OwnMaster:
+    """A ``rosmaster --core`` this process started because none answered; stopped on close."""
+
+    def __init__(self, uri, process):
+        self.uri = uri
+        self.process = process
+
+    @classmethod
+    def ensure(cls, uri=None, timeout=10.0):
+        """None when a master answers at ``uri``; otherwise start one there and return it."""
+        uri = uri or master.master_uri()
+        if master.identity("/flask_move_server_sim", uri, timeout=1.0) is not None:
+            log.info("using the ROS master at %s", uri)
+            return None
+        parsed = urlparse(uri)
+        if parsed.hostname not in LOCAL_HOSTS:
+            raise ConfigError("ROS_MASTER_URI", None, "no ROS master answers at {} and it is not on this "
+                              "machine, so --sim cannot start one there".format(uri))
+        os.environ.setdefault("ROS_MASTER_URI", uri)
+        if not (os.environ.get("ROS_IP") or os.environ.get("ROS_HOSTNAME")):
+            os.environ["ROS_HOSTNAME"] = "localhost"  # a node URI that resolves without DNS
+        rosmaster = shutil.which("rosmaster") or "rosmaster"
+        process = subprocess.Popen([rosmaster, "--core", "-p", str(parsed.port or 11311)],
+                                   stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                                   start_new_session=True, preexec_fn=_die_with_parent)
+        own = cls(uri, process)
+        own._wait_ready(timeout)
+        log.info("started a ROS master at %s (pid %d); it stops with the server", uri, process.pid)
+        return own
+
+    def _wait_ready(self, timeout):
+        deadline = time.monotonic() + timeout
+        while master.identity("/flask_move_server_sim", self.uri, timeout=0.5) is None:
+            if self.process.poll() is not None or time.monotonic() > deadline:
+                self.close()
+                raise ConfigError("ROS_MASTER_URI", None, "could not start a ROS master at {} "
+                                  "(is the port taken, or rosmaster not installed?)".format(self.uri))
+            time.sleep(0.1)
+
+    def close(self):
+        """Stop the master (SIGTERM, then SIGKILL after 3 s). Idempotent."""
+        if self.process.poll() is None:
+            self.process.terminate()
+            try:
+                self.process.wait(3)
+            except subprocess.TimeoutExpired:
+                self.process.kill()
+                self.process.wait()
+            log.info("stopped the ROS master at %s", self.uri)
+
+
+def _die_with_parent():
+    """In the child: get SIGTERM if the server dies without closing (Linux), so no master is left behind."""
+    try:
+        import ctypes
+
+        ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, signal.SIGTERM)  # PR_SET_PDEATHSIG
+    except (OSError, AttributeError):
+        pass

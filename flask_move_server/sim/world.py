@@ -1,0 +1,182 @@
+"""The simulated world's ROS side: the robot's true motion, /map, /scan, and an AMCL stand-in.
+
+A thread moves the :class:`~flask_move_server.sim.body.RobotBody` by the
+ground speeds the sim motor backend reports (``wheel_speeds()``: the duties
+the real base controller applied), ``speed_factor`` times faster than real
+time when asked. The base controller's own odometry arrives on ``/odom``; for
+each message the world publishes what AMCL would: tf ``map → odom`` such that
+``map → odom → base_link`` is the true pose at that message's stamp
+(true pose ∘ odometry⁻¹), and ``/amcl_pose``. The map is published latched on
+``/map``; ``/scan`` is cast at ``scan_rate`` while someone listens.
+"""
+
+import collections
+import logging
+import threading
+import time
+
+import rospy
+import tf2_ros
+from geometry_msgs.msg import PoseWithCovarianceStamped, TransformStamped
+from nav_msgs.msg import OccupancyGrid, Odometry
+from sensor_msgs.msg import LaserScan
+
+from flask_move_server.geometry import Pose2D, quaternion_to_yaw, yaw_to_quaternion
+from flask_move_server.sim.body import compose, interpolate, inverse
+
+log = logging.getLogger(__name__)
+
+AMCL_COVARIANCE = [0.0025, 0, 0, 0, 0, 0, 0, 0.0025, 0, 0, 0, 0] + [0] * 23 + [0.0007]
+
+
+class SimWorld:
+    """Moves the simulated robot and publishes what its sensors and localization would."""
+
+    def __init__(self, config, node, body, laser, wheel_speeds):
+        sim_config = config.sim
+        self.config = sim_config
+        self._amcl_topic = config.navigation.amcl_pose_topic
+        self.frames = config.ros.frames
+        self.body = body
+        self.laser = laser
+        self._odom_topic = config.drive.odom_topic
+        self._wheel_speeds = wheel_speeds
+        self._history = collections.deque(maxlen=max(10, int(sim_config.rate * 3)))
+        self._stop = threading.Event()
+        self._thread = None
+        self._pubs = None
+        self.steps = 0
+        node.when_ready(self._setup)
+
+    def _setup(self):
+        if self._stop.is_set():
+            return
+        grid_pub = rospy.Publisher(self.config.map_topic, OccupancyGrid, queue_size=1, latch=True)
+        grid_pub.publish(occupancy_grid_message(self.body.costmap.grid, self.frames.map))
+        self._pubs = {
+            "map": grid_pub,
+            "scan": rospy.Publisher(self.config.scan_topic, LaserScan, queue_size=1),
+            "amcl": rospy.Publisher(self._amcl_topic, PoseWithCovarianceStamped, queue_size=1),
+            "tf": tf2_ros.TransformBroadcaster(),
+        }
+        self._odom_sub = rospy.Subscriber(self._odom_topic, Odometry, self._on_odom, queue_size=5)
+        self._thread = threading.Thread(target=self._run, name="sim-world", daemon=True)
+        self._thread.start()
+        log.info("simulated world: map %s (%d x %d cells, %.3f m), robot at %s, speed factor %s",
+                 self.body.costmap.grid.source, self.body.costmap.grid.width, self.body.costmap.grid.height,
+                 self.body.costmap.resolution, self.body.pose.as_dict(), self.config.speed_factor)
+
+    def pose(self):
+        """The robot's true pose in the map frame (what the AMCL stand-in reports)."""
+        return self.body.pose
+
+    # the world's clock -----------------------------------------------------------
+
+    def _run(self):
+        period = 1.0 / self.config.rate
+        scan_period = 1.0 / self.config.scan_rate if self.config.scan_rate > 0 else None
+        last = next_scan = time.monotonic()
+        self._history.append((rospy.get_time(), self.body.pose))
+        while not self._stop.wait(period):
+            now = time.monotonic()
+            left, right = self._wheel_speeds()
+            pose = self.body.step(left, right, (now - last) * self.config.speed_factor)
+            last = now
+            self.steps += 1
+            self._history.append((rospy.get_time(), pose))
+            if scan_period is not None and now >= next_scan:
+                next_scan = max(next_scan + scan_period, now)
+                self._publish_scan(pose)
+
+    def _publish_scan(self, pose):
+        pub = self._pubs["scan"]
+        if pub.get_num_connections() == 0:
+            return
+        pub.publish(scan_message(self.laser, self.laser.scan(pose), self.frames.base_link, self.config.scan_rate))
+
+    # the AMCL stand-in -------------------------------------------------------------
+
+    def _on_odom(self, msg):
+        if self._stop.is_set():
+            return
+        p, o = msg.pose.pose.position, msg.pose.pose.orientation
+        odom = Pose2D(p.x, p.y, quaternion_to_yaw(o.x, o.y, o.z, o.w))
+        true = self.pose_at(msg.header.stamp.to_sec())
+        map_to_odom = compose(true, inverse(odom))
+        self._pubs["tf"].sendTransform(
+            transform_message(map_to_odom, msg.header.stamp, self.frames.map, msg.header.frame_id or self.frames.odom))
+        self._pubs["amcl"].publish(amcl_pose_message(true, msg.header.stamp, self.frames.map))
+
+    def pose_at(self, stamp):
+        """The true pose at ROS time ``stamp`` (seconds), interpolated from the recent history."""
+        history = list(self._history)
+        if not history or stamp >= history[-1][0]:
+            return self.body.pose
+        if stamp <= history[0][0]:
+            return history[0][1]
+        for (t0, a), (t1, b) in zip(reversed(history[:-1]), reversed(history[1:])):
+            if t0 <= stamp:
+                return interpolate(a, b, (stamp - t0) / (t1 - t0) if t1 > t0 else 1.0)
+        return history[0][1]
+
+    def close(self):
+        """Stop moving the robot and publishing. Idempotent."""
+        self._stop.set()
+        if self._thread is not None and self._thread is not threading.current_thread():
+            self._thread.join(timeout=2)
+        if self._pubs is not None:
+            self._odom_sub.unregister()
+            for name in ("map", "scan", "amcl"):
+                self._pubs[name].unregister()
+            self._pubs = None
+
+
+def occupancy_grid_message(grid, frame):
+    """The map as a nav_msgs/OccupancyGrid (cell values clamped to -1..100)."""
+    msg = OccupancyGrid()
+    msg.header.frame_id = frame
+    msg.header.stamp = rospy.Time.now()
+    info = msg.info
+    info.map_load_time = msg.header.stamp
+    info.resolution = grid.resolution
+    info.width, info.height = grid.width, grid.height
+    info.origin.position.x, info.origin.position.y = grid.origin_x, grid.origin_y
+    info.origin.orientation.w = 1.0
+    msg.data = [v if -1 <= v <= 100 else 100 for v in grid.cells]
+    return msg
+
+
+def scan_message(laser, ranges, frame, rate):
+    """A sensor_msgs/LaserScan of ``ranges`` as the laser casts them."""
+    msg = LaserScan()
+    msg.header.stamp = rospy.Time.now()
+    msg.header.frame_id = frame
+    msg.angle_min = laser.angle_min
+    msg.angle_increment = laser.angle_increment
+    msg.angle_max = laser.angle_min + laser.angle_increment * (laser.beams - 1)
+    msg.scan_time = 1.0 / rate
+    msg.range_min, msg.range_max = laser.range_min, laser.range_max
+    msg.ranges = ranges
+    return msg
+
+
+def transform_message(pose, stamp, parent, child):
+    """A tf parent → child for a planar pose."""
+    t = TransformStamped()
+    t.header.stamp = stamp
+    t.header.frame_id, t.child_frame_id = parent, child
+    t.transform.translation.x, t.transform.translation.y = pose.x, pose.y
+    r = t.transform.rotation
+    r.x, r.y, r.z, r.w = yaw_to_quaternion(pose.yaw)
+    return t
+
+
+def amcl_pose_message(pose, stamp, frame):
+    """/amcl_pose: the localized pose with AMCL's typical small covariance."""
+    msg = PoseWithCovarianceStamped()
+    msg.header.stamp, msg.header.frame_id = stamp, frame
+    msg.pose.pose.position.x, msg.pose.pose.position.y = pose.x, pose.y
+    o = msg.pose.pose.orientation
+    o.x, o.y, o.z, o.w = yaw_to_quaternion(pose.yaw)
+    msg.pose.covariance = AMCL_COVARIANCE
+    return msg

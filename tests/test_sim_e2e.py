@@ -1,0 +1,209 @@
+"""The simulated robot end to end: ``flask-move-server --sim`` as a user runs it, real HTTP.
+
+One server process for the module (with a sim speed factor, so the robot
+covers the flat quickly). Nothing answers at its ROS_MASTER_URI, so it starts
+its own master there; the last test stops the server with SIGTERM and checks
+that the master went with it. Everything from the HTTP request to the motor
+backend is the real code; the world and move_base are the simulation's.
+"""
+
+import json
+import math
+import os
+import re
+import shutil
+import signal
+import subprocess
+import sys
+import threading
+import time
+
+import pytest
+import requests
+import yaml
+
+from tests.conftest import ROOT, free_port, run_cli, stop_process, wait_for
+
+SPEED_FACTOR = 4.0
+DEMO_WAYPOINTS = os.path.join(ROOT, "config", "waypoints.demo.yaml")
+
+
+class SimServer:
+    """``flask-move-server --sim`` in a child process, its stderr collected as it comes."""
+
+    def __init__(self, tmp_path):
+        self.master_port = free_port()
+        self.master_uri = "http://127.0.0.1:{}".format(self.master_port)
+        self.waypoints = tmp_path / "waypoints.yaml"
+        shutil.copy(DEMO_WAYPOINTS, str(self.waypoints))
+        config = tmp_path / "sim.yaml"
+        config.write_text("sim:\n  speed_factor: {}\n".format(SPEED_FACTOR))
+        env = {"ROS_MASTER_URI": self.master_uri, "ROS_HOME": str(tmp_path), "ROS_LOG_DIR": str(tmp_path / "log"),
+               "ROS_IP": "127.0.0.1"}
+        self.proc = run_cli("--sim", "--config", str(config), "--host", "127.0.0.1", "--port", "0", "--no-mdns",
+                            "--waypoints", str(self.waypoints), env=env)
+        self.lines = []
+        self._reader = threading.Thread(target=self._read, daemon=True)
+        self._reader.start()
+        self.url = wait_for(lambda: self._find(r"serving the API on (http://\S+)"), timeout=60,
+                            message="the sim server to log its URL\n" + "".join(self.lines)).group(1)
+        wait_for(lambda: self.get("/health").json().get("move_base") == "ready", timeout=30,
+                 message="move_base stand-in ready")
+        wait_for(lambda: self.pose() is not None, timeout=30, message="a pose from tf map -> base_link")
+
+    def _read(self):
+        for line in self.proc.stderr:
+            self.lines.append(line)
+
+    def _find(self, pattern):
+        for line in list(self.lines):
+            m = re.search(pattern, line)
+            if m:
+                return m
+        return None
+
+    def get(self, path):
+        return requests.get(self.url + path, timeout=10)
+
+    def post(self, path, body=None, timeout=10):
+        return requests.post(self.url + path, json=body, timeout=timeout)
+
+    def status(self):
+        return self.get("/status").json()
+
+    def pose(self):
+        return self.status()["pose"]
+
+    def waypoint(self, name):
+        return yaml.safe_load(self.waypoints.read_text())["waypoints"][name]
+
+
+@pytest.fixture(scope="module")
+def sim(tmp_path_factory):
+    server = SimServer(tmp_path_factory.mktemp("sim"))
+    yield server
+    stop_process(server.proc)
+
+
+def _close_to(pose, x, y, yaw, xy_tol=0.1, yaw_tol=0.2):
+    yaw_error = abs(math.atan2(math.sin(pose["yaw"] - yaw), math.cos(pose["yaw"] - yaw)))
+    return math.hypot(pose["x"] - x, pose["y"] - y) <= xy_tol and yaw_error <= yaw_tol
+
+
+def _still(sim, interval=0.5):
+    """True when the robot's pose does not change over ``interval`` seconds."""
+    a = sim.pose()
+    time.sleep(interval)
+    b = sim.pose()
+    return math.hypot(a["x"] - b["x"], a["y"] - b["y"]) < 0.002 and abs(a["yaw"] - b["yaw"]) < 0.005
+
+
+def test_starts_at_the_origin_with_its_own_master(sim):
+    pose = sim.pose()
+    assert pose["frame"] == "map" and _close_to(pose, 0.0, 0.0, 0.0, 0.01, 0.01)
+    assert sim.status()["motors"]["backend"] == "sim"
+    assert sim._find(r"started a ROS master at " + re.escape(sim.master_uri))
+
+
+@pytest.mark.parametrize("name", ["kitchen", "bedroom", "office", "sofa", "dock"])
+def test_goto_each_demo_waypoint_arrives(sim, name):
+    r = sim.post("/goto", {"name": name, "wait": 90}, timeout=100)
+    assert r.status_code == 200, r.text
+    assert r.json()["navigation"]["state"] == "succeeded"
+    x, y, yaw = sim.waypoint(name)
+    pose = sim.pose()
+    assert _close_to(pose, x, y, yaw), (name, pose)
+    assert sim.status()["navigation"]["state"] == "succeeded"
+
+
+def test_a_waypoint_inside_a_wall_is_aborted_at_once(sim):
+    r = requests.put(sim.url + "/waypoints/in the wall", json={"x": 4.0, "y": -1.5, "yaw": 0.0}, timeout=10)
+    assert r.status_code == 201, r.text
+    before = sim.pose()
+    r = sim.post("/goto", {"name": "in the wall", "wait": 30}, timeout=40)
+    assert r.status_code == 409 and r.json()["error"] == "navigation_failed", r.text
+    assert sim.status()["navigation"]["state"] == "aborted"
+    after = sim.pose()
+    assert math.hypot(after["x"] - before["x"], after["y"] - before["y"]) < 0.01
+
+
+def test_a_walled_off_goal_is_aborted(sim):
+    r = sim.post("/goto", {"x": 4.6, "y": -1.5, "yaw": 0.0, "wait": 30}, timeout=40)  # the locked store room
+    assert r.status_code == 409 and r.json()["error"] == "navigation_failed", r.text
+    assert sim.status()["navigation"]["state"] == "aborted"
+
+
+def test_stop_midway_halts_the_robot_and_cancels_the_goal(sim):
+    start = sim.pose()
+    r = sim.post("/goto", {"name": "kitchen"})
+    assert r.status_code == 202, r.text
+    wait_for(lambda: math.hypot(sim.pose()["x"] - start["x"], sim.pose()["y"] - start["y"]) > 0.3, timeout=30,
+             message="the robot to get going")
+    assert sim.post("/stop").status_code == 200
+    wait_for(lambda: sim.status()["navigation"]["state"] == "canceled", timeout=10, message="state canceled")
+    wait_for(lambda: _still(sim), timeout=10, message="the robot to stand still")
+    motors = sim.status()["motors"]
+    assert (motors["left"], motors["right"]) == (0.0, 0.0)
+    x, y, _ = sim.waypoint("kitchen")
+    assert math.hypot(sim.pose()["x"] - x, sim.pose()["y"] - y) > 1.0
+
+
+def test_teleop_moves_the_robot_and_the_deadman_stops_it(sim):
+    wait_for(lambda: _still(sim), timeout=10, message="the robot at rest")
+    before = sim.pose()
+    r = sim.post("/teleop", {"linear": 0.0, "angular": 1.0})
+    assert r.status_code == 200, r.text
+    wait_for(lambda: abs(sim.pose()["yaw"] - before["yaw"]) > 0.05, timeout=10, message="teleop to turn the robot")
+    wait_for(lambda: _still(sim), timeout=10, message="the deadman to stop the robot")
+    assert sim.status()["teleop"]["active"] is False
+    assert sim.status()["motors"]["left"] == 0.0
+
+
+_LISTENER = """
+import json, rospy
+from nav_msgs.msg import OccupancyGrid
+from sensor_msgs.msg import LaserScan
+rospy.init_node("sim_listener", anonymous=True, disable_signals=True)
+grid = rospy.wait_for_message("/map", OccupancyGrid, timeout=20)
+scan = rospy.wait_for_message("/scan", LaserScan, timeout=20)
+finite = [r for r in scan.ranges if r != float("inf")]
+print(json.dumps({"map": [grid.info.width, grid.info.height, round(grid.info.resolution, 3), grid.header.frame_id,
+                          sorted(set(grid.data))],
+                  "scan": [len(scan.ranges), scan.range_min, scan.range_max, scan.header.frame_id, len(finite),
+                           min(finite), max(finite)]}))
+"""
+
+
+def test_rviz_sees_the_map_and_the_scan(sim):
+    env = dict(os.environ, ROS_MASTER_URI=sim.master_uri, ROS_IP="127.0.0.1")
+    out = subprocess.run([sys.executable, "-c", _LISTENER], env=env, capture_output=True, text=True, timeout=60)
+    assert out.returncode == 0, out.stderr
+    data = json.loads(out.stdout.strip().splitlines()[-1])
+    assert data["map"] == [260, 180, 0.05, "map", [-1, 0, 100]]
+    beams, range_min, range_max, frame, finite, nearest, farthest = data["scan"]
+    assert (beams, range_min, range_max, frame) == (360, pytest.approx(0.15), pytest.approx(8.0), "base_link")
+    assert finite > 300  # inside the flat nearly every beam hits a wall
+    assert 0.15 <= nearest and farthest <= 8.0
+
+
+def test_sigterm_stops_everything_including_its_master(sim):
+    master_pid = _rosmaster_pid(sim.master_port)
+    assert master_pid is not None
+    sim.proc.send_signal(signal.SIGTERM)
+    assert sim.proc.wait(15) == 0
+    assert not os.path.exists("/proc/{}".format(master_pid)), "the ROS master was left running"
+    assert _rosmaster_pid(sim.master_port) is None
+
+
+def _rosmaster_pid(port):
+    for pid in os.listdir("/proc"):
+        if not pid.isdigit():
+            continue
+        try:
+            with open("/proc/{}/cmdline".format(pid), "rb") as f:
+                args = f.read().split(b"\0")
+        except OSError:
+            continue
+        if any(a.endswith(b"rosmaster") for a in args) and str(port).encode() in args:
+            return int(pid)
+    return None
