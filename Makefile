@@ -12,6 +12,8 @@ PYTEST_ARGS ?=
 ROS_DEBS := python3-rospy python3-rosmaster python3-roslaunch python3-rosgraph python3-actionlib \
 	python3-move-base-msgs python3-tf2-ros python3-geometry-msgs python3-nav-msgs \
 	python3-sensor-msgs python3-visualization-msgs python3-std-msgs python3-venv iproute2
+# systemd-analyze verify and rospack for the deployment tests (units, launch files).
+DEPLOY_TEST_DEBS := systemd rospack-tools
 # Debian's own builds of our Python dependencies: what a Pi gets from apt (make test-debian).
 DEBIAN_PY_DEBS := python3-flask python3-waitress python3-yaml python3-requests python3-zeroconf \
 	python3-serial python3-pytest python3-pytest-timeout python3-hypothesis python3-setuptools
@@ -21,7 +23,7 @@ DEBIAN_PY_DEBS := python3-flask python3-waitress python3-yaml python3-requests p
 setup: $(VENV)/.installed
 
 $(VENV)/.installed: setup.py Makefile
-	./scripts/apt-ensure $(ROS_DEBS)
+	./scripts/apt-ensure $(ROS_DEBS) $(DEPLOY_TEST_DEBS)
 	$(SYSTEM_PYTHON) -m venv --system-site-packages $(VENV)
 	$(PY) -m pip install -q --disable-pip-version-check --upgrade --upgrade-strategy eager -e '.[test]'
 	touch $@
@@ -37,7 +39,7 @@ pytest: setup
 test: lint pytest
 
 $(DEBIAN_VENV)/.installed: setup.py Makefile
-	./scripts/apt-ensure $(ROS_DEBS) $(DEBIAN_PY_DEBS)
+	./scripts/apt-ensure $(ROS_DEBS) $(DEPLOY_TEST_DEBS) $(DEBIAN_PY_DEBS)
 	$(SYSTEM_PYTHON) -m venv --system-site-packages $(DEBIAN_VENV)
 	$(DEBIAN_VENV)/bin/python -m pip install -q --disable-pip-version-check --no-deps --no-build-isolation -e .
 	touch $@
