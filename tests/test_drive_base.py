@@ -157,6 +157,7 @@ def test_close_is_idempotent_and_stops_the_motors(ros_node, topics):
     controller.close()
     assert backend.applied()[:2] == (0.0, 0.0) and backend.closed
     assert not controller.command(0.3, 0.0)
+    assert not any(t.is_alive() for t in controller._threads)  # no thread left behind
 
 
 def test_backend_none_drives_nothing(ros_node, topics):

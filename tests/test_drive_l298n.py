@@ -215,3 +215,16 @@ def test_importing_the_package_does_not_import_rpi_gpio():
     code = "import sys, flask_move_server.cli, flask_move_server.drive; print('RPi' in sys.modules)"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert out.strip() == "False"
+
+
+def test_a_bad_pin_in_the_config_file_names_file_and_key():
+    from flask_move_server import config
+
+    data = {"drive": {"backend": "l298n", "l298n": {"left": [{"in1": 17, "in2": 27, "en": 40}]}}}
+    with pytest.raises(ConfigError) as info:
+        config.build(config.Config, data, source="robot.yaml")
+    assert "robot.yaml" in str(info.value) and "drive.l298n.left[0].en" in str(info.value)
+    data["drive"]["l298n"]["stop_mode"] = "float"
+    data["drive"]["l298n"]["left"][0]["en"] = 22
+    with pytest.raises(ConfigError, match="brake, coast"):
+        config.build(config.Config, data, source="robot.yaml")
