@@ -13,8 +13,11 @@ from flask_move_server.drive.odometry import ENCODERS, Odometry, ticks_per_metre
 speeds = st.floats(-2.0, 2.0, allow_nan=False)
 positive = st.floats(0.05, 2.0)
 fractions = st.floats(0.0, 0.6)
+# No per-example deadline: the machine is shared and loaded; speed is measured in bench/, not here.
+relaxed = settings(deadline=None)
 
 
+@relaxed
 @given(speeds, speeds, positive, st.floats(0.5, 2.5))
 def test_twist_to_wheels_and_back_is_the_identity(linear, angular, track, multiplier):
     base = SkidSteer(track, multiplier)
@@ -22,11 +25,13 @@ def test_twist_to_wheels_and_back_is_the_identity(linear, angular, track, multip
     assert math.isclose(back[0], linear, abs_tol=1e-9) and math.isclose(back[1], angular, abs_tol=1e-9)
 
 
+@relaxed
 @given(positive, st.floats(0.5, 2.5))
 def test_zero_velocity_gives_zero_wheel_speeds(track, multiplier):
     assert SkidSteer(track, multiplier).wheel_speeds(0.0, 0.0) == (0.0, 0.0)
 
 
+@relaxed
 @given(positive, st.floats(0.5, 2.5), st.floats(0.01, 2.0))
 def test_a_larger_slip_multiplier_needs_faster_wheels_for_the_same_turn(track, multiplier, angular):
     plain = SkidSteer(track, 1.0).wheel_speeds(0.0, angular)
@@ -34,6 +39,7 @@ def test_a_larger_slip_multiplier_needs_faster_wheels_for_the_same_turn(track, m
     assert math.isclose(slipping[1], plain[1] * multiplier, rel_tol=1e-9)
 
 
+@relaxed
 @given(speeds, positive, fractions, st.floats(0.65, 1.0))
 def test_duty_round_trips_to_the_speed_inside_the_range(speed, top, min_duty, max_duty):
     motor = DutyMap(top, min_duty, max_duty)
@@ -41,6 +47,7 @@ def test_duty_round_trips_to_the_speed_inside_the_range(speed, top, min_duty, ma
     assert math.isclose(motor.speed(motor.duty(speed)), expected, rel_tol=1e-9, abs_tol=1e-9)
 
 
+@relaxed
 @given(speeds, positive, fractions, st.floats(0.65, 1.0))
 def test_duty_never_exceeds_max_and_never_sits_in_the_deadband(speed, top, min_duty, max_duty):
     duty = DutyMap(top, min_duty, max_duty).duty(speed)
@@ -49,6 +56,7 @@ def test_duty_never_exceeds_max_and_never_sits_in_the_deadband(speed, top, min_d
     assert math.copysign(1, duty) == math.copysign(1, speed) or duty == 0.0
 
 
+@relaxed
 @given(positive, fractions, st.floats(0.65, 1.0))
 def test_zero_speed_is_zero_duty_and_the_deadband_does_not_move(top, min_duty, max_duty):
     motor = DutyMap(top, min_duty, max_duty)
@@ -56,6 +64,7 @@ def test_zero_speed_is_zero_duty_and_the_deadband_does_not_move(top, min_duty, m
     assert motor.speed(min_duty * 0.99) == 0.0 and motor.speed(-min_duty * 0.99) == 0.0
 
 
+@relaxed
 @given(speeds, speeds, positive)
 def test_desaturation_keeps_the_arc_and_the_limit(left, right, limit):
     new_left, new_right = desaturate(left, right, limit)
@@ -63,6 +72,7 @@ def test_desaturation_keeps_the_arc_and_the_limit(left, right, limit):
     assert math.isclose(new_left * right, new_right * left, abs_tol=1e-9)  # same ratio, same curve
 
 
+@relaxed
 @given(st.lists(st.tuples(speeds, speeds), min_size=1, max_size=30), st.floats(0.1, 3.0), st.floats(0.1, 6.0),
        st.floats(0.005, 0.1))
 def test_ramping_never_exceeds_speed_or_acceleration_limits(targets, accel, angular_accel, dt):
@@ -76,6 +86,7 @@ def test_ramping_never_exceeds_speed_or_acceleration_limits(targets, accel, angu
         velocity = new
 
 
+@relaxed
 @given(speeds, speeds, st.floats(0.001, 0.5), st.integers(2, 20))
 def test_exact_arc_integration_does_not_depend_on_the_step_size(linear, angular, dt, steps):
     one = integrate_pose(0.0, 0.0, 0.0, linear, angular, dt * steps)
@@ -142,7 +153,7 @@ def test_encoder_odometry_from_scripted_ticks():
     assert math.isclose(odometry.yaw, math.pi / 2, abs_tol=2 * (1 / per_metre) / track)
 
 
-@settings(max_examples=50)
+@settings(max_examples=50, deadline=None)
 @given(st.floats(0.0, 10.0))
 def test_covariance_grows_with_distance_and_is_larger_open_loop(metres):
     closed, open_loop = Odometry(ENCODERS), Odometry()
