@@ -182,3 +182,19 @@ def test_a_wrong_server_param_is_caught():
     flat = {"/flask_move_server/server/prot": 5000}
     (problem,) = check_node(flat, "flask_move_server", "flask_move_server")
     assert "server.prot" in problem
+
+
+def test_local_planner_asks_only_what_the_drive_can_do():
+    with open(os.path.join(ROOT, "config", "dwa_local_planner.yaml"), encoding="utf-8") as f:
+        dwa = yaml.safe_load(f)["DWAPlannerROS"]
+    robot = config_mod.load(os.path.join(ROOT, "config", "robot.yaml"))
+    drive, teleop = robot.drive, robot.teleop
+    assert dwa["max_vel_y"] == dwa["min_vel_y"] == dwa["acc_lim_y"] == 0.0  # skid-steer: no strafing
+    assert dwa["max_vel_x"] <= min(drive.max_linear, teleop.max_linear)
+    assert abs(dwa["min_vel_x"]) <= dwa["max_vel_x"]
+    assert 0 < dwa["min_vel_theta"] < dwa["max_vel_theta"] <= min(drive.max_angular, teleop.max_angular)
+    # The drive ramps at its own limits: a planner assuming faster ramps mispredicts every trajectory.
+    assert dwa["acc_lim_x"] <= drive.max_linear_accel
+    assert dwa["acc_lim_theta"] <= drive.max_angular_accel
+    # Below min_vel_trans a wheel sits in the min_duty deadband: DWA must treat it as stopped.
+    assert dwa["min_vel_trans"] >= dwa["trans_stopped_vel"] > 0
