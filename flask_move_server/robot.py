@@ -78,9 +78,11 @@ class Robot:
         }
 
     def close(self):
-        """Stop moving and release the teleop thread. Idempotent."""
+        """Stop moving, then release the ROS connections and the teleop thread. Idempotent."""
         self.stop()
         self.teleop_control.close()
+        self.navigator.close()
+        self.pose.close()
 
 
 def _failure_message(state, nav):

@@ -11,6 +11,10 @@ import time
 
 import pytest
 
+# The real robot assembled on this process's rospy node: robot_config, robot, ready_robot,
+# move_base (scripted actionlib stand-in), store, app, client.
+pytest_plugins = ["tests.robot_fixtures"]
+
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
 

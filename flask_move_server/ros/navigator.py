@@ -131,6 +131,18 @@ class Navigator:
             return self._goal_pub is not None
         return self._client.wait_for_server(rospy.Duration(0.001))
 
+    def close(self):
+        """Release the action client's or the goal topic's connections. Idempotent."""
+        client, self._client = self._client, None
+        topics = [self._goal_pub, self._cancel_pub]
+        if client is not None:
+            ac = client.action_client
+            topics += [ac.pub_goal, ac.pub_cancel, ac.status_sub, ac.result_sub, ac.feedback_sub]
+        self._goal_pub = self._cancel_pub = None
+        for topic in topics:
+            if topic is not None:
+                topic.unregister()
+
     # internals ---------------------------------------------------------------
 
     def _check_reachable(self):
@@ -140,7 +152,7 @@ class Navigator:
                 "or set ROS_MASTER_URI.".format(self._node.master_uri, self._node.state)
             )
         if self._client is None and self._goal_pub is None:
-            raise RosUnavailable("The ROS node is still starting; try again in a moment.")
+            raise RosUnavailable("The ROS node is still starting (or stopping); try again in a moment.")
         if self._client is not None and not self._client.wait_for_server(rospy.Duration(self._config.server_wait)):
             action = rospy.resolve_name(self._config.action)
             raise NavigationUnavailable(

@@ -39,6 +39,7 @@ class RosNode:
         self._lock = threading.Lock()
         self._stop = threading.Event()
         self._thread = None
+        self._watcher = None
 
     @property
     def master_uri(self):
@@ -81,12 +82,13 @@ class RosNode:
             return
         self.state = CLOSED
         self._stop.set()
-        if self._thread is not None and self._thread is not threading.current_thread():
-            self._thread.join(timeout=5)
         if self._owns_rospy:
             import rospy
 
-            rospy.signal_shutdown("flask-move-server stopping")
+            rospy.signal_shutdown("flask-move-server stopping")  # also ends rospy's retry loops
+        for thread in (self._watcher, self._thread):
+            if thread is not None and thread is not threading.current_thread():
+                thread.join(timeout=2)
 
     # the background thread ---------------------------------------------------
 
@@ -104,9 +106,12 @@ class RosNode:
             self.state = CONNECTED
             callbacks, self._ready_callbacks = self._ready_callbacks, []
         log.info("connected to the ROS master at %s as %s", uri, self.name)
+        # Watch from a thread of its own: a callback registering topics with a master that
+        # died meanwhile blocks inside rospy, and the loss must still be noticed.
+        self._watcher = threading.Thread(target=self._watch, name="ros-master-watch", daemon=True)
+        self._watcher.start()
         for callback in callbacks:
             _call(callback)
-        self._watch()
 
     def _init_rospy(self):
         import rospy

@@ -34,12 +34,20 @@ class PoseTracker:
         self._lock = threading.Lock()
         self._amcl = None
         self._buffer = None
+        self._subscriptions = []
         node.when_ready(self._setup)
 
     def _setup(self):
         self._buffer = tf2_ros.Buffer(cache_time=rospy.Duration(10.0))
-        self._listener = tf2_ros.TransformListener(self._buffer)
-        rospy.Subscriber(self._amcl_topic, PoseWithCovarianceStamped, self._on_amcl, queue_size=1)
+        listener = tf2_ros.TransformListener(self._buffer)
+        amcl = rospy.Subscriber(self._amcl_topic, PoseWithCovarianceStamped, self._on_amcl, queue_size=1)
+        self._subscriptions = [listener, amcl]
+
+    def close(self):
+        """Stop listening to tf and AMCL. Idempotent."""
+        subscriptions, self._subscriptions = self._subscriptions, []
+        for subscription in subscriptions:
+            subscription.unregister()
 
     def current(self):
         """The latest :class:`PoseReading`, or None when neither tf nor AMCL gave one."""

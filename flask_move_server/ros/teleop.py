@@ -58,7 +58,7 @@ class Teleop:
             self._deadline = None
             self._linear = self._angular = 0.0
             self._cond.notify_all()
-        if self._pub is not None and self._node.connected:
+        if self._pub is not None and self._node.connected and not self._closed:
             self._pub.publish(Twist())
 
     def status(self):
@@ -83,6 +83,8 @@ class Teleop:
             self._cond.notify_all()
         if self._thread is not None:
             self._thread.join(timeout=2)
+        if self._pub is not None:
+            self._pub.unregister()
 
     def _run(self):
         period = 1.0 / self._config.rate

@@ -23,6 +23,7 @@ class ScriptedMoveBase:
         self.name = name
         self.delay = delay
         self.goals = []  # every goal received, with the monotonic time it arrived
+        self._stopping = False
         self._server = actionlib.SimpleActionServer(name, MoveBaseAction, execute_cb=self._execute, auto_start=False)
         self._server.start()
         self._lock = threading.Lock()
@@ -40,7 +41,7 @@ class ScriptedMoveBase:
             return
         deadline = time.monotonic() + (3600 if x == HOLD_X else self.delay)
         while time.monotonic() < deadline:
-            if self._server.is_preempt_requested() or rospy.is_shutdown():
+            if self._server.is_preempt_requested() or rospy.is_shutdown() or self._stopping:
                 self._server.set_preempted()
                 return
             feedback = MoveBaseFeedback()
@@ -50,8 +51,13 @@ class ScriptedMoveBase:
         self._server.set_succeeded(MoveBaseResult())
 
     def shutdown(self):
-        # actionlib servers have no stop(); unregister their topics so the name is free.
-        for attr in ("status_pub", "result_pub", "feedback_pub", "goal_sub", "cancel_sub"):
-            topic = getattr(self._server.action_server, attr, None)
-            if topic is not None:
-                topic.unregister()
+        """Stop serving: the action's topics are freed and the executor thread ends."""
+        server = self._server
+        self._stopping = True
+        with server.terminate_mutex:
+            server.need_to_terminate = True
+        with server.execute_condition:
+            server.execute_condition.notify_all()
+        if server.execute_thread is not None:
+            server.execute_thread.join(5)
+        server.action_server.stop()

@@ -1,0 +1,131 @@
+"""Configuration: defaults, the documented example, validation that names file, key and reason."""
+
+import os
+
+import pytest
+
+from flask_move_server import cli, config
+from flask_move_server.errors import ConfigError
+from tests.conftest import ROOT, run_cli
+
+EXAMPLE = os.path.join(ROOT, "config", "robot.yaml")
+
+
+def _write(tmp_path, text):
+    path = tmp_path / "robot.yaml"
+    path.write_text(text)
+    return str(path)
+
+
+def _without_paths(data):
+    data = config.as_plain(data)
+    data["waypoints"].pop("file")
+    return data
+
+
+def test_the_documented_example_is_exactly_the_defaults():
+    assert _without_paths(config.load(EXAMPLE)) == _without_paths(config.Config())
+
+
+def test_every_default_key_is_documented_in_the_example():
+    import yaml
+
+    with open(EXAMPLE) as f:
+        documented = yaml.safe_load(f)
+
+    def keys(data, prefix=""):
+        for k, v in data.items():
+            yield prefix + k
+            if isinstance(v, dict):
+                yield from keys(v, prefix + k + ".")
+
+    assert set(keys(config.as_plain(config.Config()))) == set(keys(documented))
+
+
+def test_no_file_and_an_empty_file_give_the_defaults(tmp_path):
+    assert config.load(None) == config.Config()
+    loaded = config.load(_write(tmp_path, ""))
+    assert loaded.server == config.ServerConfig() and loaded.teleop == config.TeleopConfig()
+
+
+def test_relative_paths_are_relative_to_the_config_file(tmp_path):
+    loaded = config.load(_write(tmp_path, "waypoints:\n  file: places.yaml\n"))
+    assert loaded.waypoints.file == str(tmp_path / "places.yaml")
+
+
+@pytest.mark.parametrize("text,key,reason", [
+    ("server:\n  prot: 5000\n", "server.prot", "did you mean 'port'"),
+    ("sever:\n  port: 5000\n", "sever", "did you mean 'server'"),
+    ("server:\n  port: '5000'\n", "server.port", "whole number"),
+    ("server:\n  port: 70000\n", "server.port", "TCP port"),
+    ("teleop:\n  deadman: -1\n", "teleop.deadman", "greater than 0"),
+    ("teleop:\n  max_linear: .nan\n", "teleop.max_linear", "finite number"),
+    ("navigation:\n  goal_interface: actionlib\n", "navigation.goal_interface", "one of action, topic"),
+    ("mdns:\n  enabled: 'yes please'\n", "mdns.enabled", "true or false"),
+    ("ros:\n  frames: [map]\n", "ros.frames", "must be a mapping"),
+    ("drive:\n  backend: pigpio\n", "drive.backend", "must be one of"),
+])
+def test_bad_values_name_the_file_the_key_and_the_reason(tmp_path, text, key, reason):
+    path = _write(tmp_path, text)
+    with pytest.raises(ConfigError) as err:
+        config.load(path)
+    assert err.value.key == key
+    assert reason in err.value.reason
+    assert str(err.value).startswith(path)
+
+
+@pytest.mark.parametrize("text,reason", [
+    ("server: [1, 2\n", "not valid YAML"),
+    ("- just\n- a list\n", "top level must be a mapping"),
+])
+def test_a_file_that_is_not_a_config_says_so(tmp_path, text, reason):
+    with pytest.raises(ConfigError, match=reason):
+        config.load(_write(tmp_path, text))
+
+
+def test_token_comes_from_the_env_var_first(tmp_path, monkeypatch):
+    token_file = tmp_path / "token"
+    token_file.write_text("from-file\n")
+    loaded = config.load(_write(tmp_path, "server:\n  token_file: token\n"))
+    monkeypatch.delenv(config.TOKEN_ENV, raising=False)
+    assert loaded.resolved_token() == "from-file"
+    monkeypatch.setenv(config.TOKEN_ENV, "from-env")
+    assert loaded.resolved_token() == "from-env"
+
+
+def test_serving_the_network_without_a_token_is_refused_with_the_fix(monkeypatch):
+    monkeypatch.delenv(config.TOKEN_ENV, raising=False)
+    cfg = config.Config()
+    with pytest.raises(ConfigError) as err:
+        config.check_serving_policy(cfg)
+    assert config.TOKEN_ENV in str(err.value) and "--insecure" in str(err.value)
+    cfg.server.insecure = True
+    config.check_serving_policy(cfg)
+    loopback = config.Config()
+    loopback.server.host = "127.0.0.1"
+    config.check_serving_policy(loopback)
+
+
+def test_flags_override_the_file(tmp_path):
+    path = _write(tmp_path, "server:\n  port: 6000\n  host: 127.0.0.1\n")
+    args = cli.parse_args(["--config", path, "--port", "7000", "--no-mdns", "--waypoints", "x.yaml"])
+    loaded = cli.load_config(args, [])
+    assert loaded.server.port == 7000
+    assert loaded.mdns.enabled is False
+    assert loaded.waypoints.file == os.path.abspath("x.yaml")
+
+
+def test_the_server_exits_2_on_a_bad_config_naming_file_key_and_reason(tmp_path):
+    path = _write(tmp_path, "teleop:\n  max_linaer: 1.0\n")
+    proc = run_cli("--config", path)
+    _, err = proc.communicate(timeout=30)
+    assert proc.returncode == 2
+    assert path in err and "teleop.max_linaer" in err and "did you mean 'max_linear'" in err
+    assert "Traceback" not in err
+
+
+def test_the_server_refuses_the_network_without_a_token():
+    proc = run_cli("--host", "0.0.0.0", "--port", "0", env={config.TOKEN_ENV: ""})
+    _, err = proc.communicate(timeout=30)
+    assert proc.returncode == 2
+    assert "refusing to serve 0.0.0.0 without a token" in err and "--insecure" in err
