@@ -1,8 +1,9 @@
 """The occupancy map as a round robot sees it: where its centre may go, and at what cost.
 
 A cell is *lethal* when an obstacle (an occupied or unknown cell, or the edge
-of the map) lies within the robot's radius of it: the robot's centre there
-would put its body into the obstacle. Cells within ``radius + margin`` are
+of the map) lies within the robot's radius of it (plus half a cell, as the
+distance runs between cell centres): the robot's centre there would put its
+body into the obstacle. Cells within ``radius + margin`` are
 allowed but cost more, so planned paths keep a safety distance where there is
 room (the inflation layer of move_base's costmap, simplified). Pure: no rospy.
 
@@ -41,8 +42,9 @@ class Costmap:
     def _inflate(self):
         """Cost of every cell from its distance to the nearest obstacle (stamped from obstacle edges)."""
         W, H, res = self.width, self.height, self.resolution
-        lethal_r2 = (self.radius / res) ** 2
-        margin_r2 = ((self.radius + self.margin) / res) ** 2
+        # Distances run between cell centres: half a cell more keeps the body out of the obstacle cell itself.
+        lethal_r2 = (self.radius / res + 0.5) ** 2 + 1e-6  # + 1e-6: 0.15 / 0.05 is not quite 3 in floating point
+        margin_r2 = ((self.radius + self.margin) / res + 0.5) ** 2 + 1e-6
         reach = int(math.ceil(math.sqrt(margin_r2)))
         offsets = _disk_offsets(reach, margin_r2, W)
         obstacles = self.obstacles
