@@ -157,8 +157,24 @@ class Server:
         self.port = int(self.http.effective_port)
         log.info("serving the API on http://%s:%d (waypoints: %s, %d loaded)",
                  self.config.server.host, self.port, store.path, len(store.all()))
+        self._advertise(stack)
         self._node.start()
         return self
+
+    def _advertise(self, stack):
+        """Announce the API over mDNS with the real port; withdrawn first on close (goodbye packets)."""
+        if not self.config.mdns.enabled:
+            log.info("mDNS advertising is off (--no-mdns or mdns.enabled: false)")
+            return
+        if self.config.serves_only_loopback():
+            log.info("serving %s only: not advertising over mDNS", self.config.server.host)
+            return
+        from flask_move_server.mdns import Advertiser
+
+        token_required = bool(self.config.resolved_token())
+        advertiser = Advertiser(self.config.mdns, self.config.server.host, self.port, token_required)
+        stack.callback(advertiser.close)
+        advertiser.start()
 
     def _build_robot(self, stack):
         from flask_move_server.drive import make_drive

@@ -36,6 +36,23 @@ def _port(value):
     return None if 0 <= value <= 65535 else "must be a TCP port, 0 to 65535"
 
 
+def _dns_label(value):
+    if value.endswith(".local"):
+        return "must be the name without .local ({!r}, not {!r})".format(value[: -len(".local")], value)
+    valid = 0 < len(value) <= 63 and value[0] != "-" and value[-1] != "-" and all(
+        c.isascii() and (c.isalnum() or c == "-") for c in value
+    )
+    return None if valid else "must be 1 to 63 letters, digits or '-' (not at either end), like robot"
+
+
+def _instance_name(value):
+    if "." in value:
+        return "must not contain '.' (it separates DNS labels)"
+    if 0 < len(value.encode("utf-8")) <= 63:
+        return None
+    return "must be 1 to 63 bytes of text"
+
+
 def _speed_factor(value):
     return None if 0 < value <= 20 else "must be above 0 and at most 20 (simulated seconds per real second)"
 
@@ -185,11 +202,13 @@ class DriveConfig:
 
 @dataclass
 class MdnsConfig:
-    """Advertising the robot as ``<hostname>.local`` with zeroconf."""
+    """Advertising the robot as ``<hostname>.local`` with zeroconf (see docs/network.md)."""
 
     enabled: bool = True
-    hostname: str = "robot"
-    instance: Optional[str] = None
+    hostname: str = _check(_dns_label, default="robot")
+    instance: Optional[str] = _check(_instance_name, default=None)
+    publish_hostname: Literal["auto", "always", "never"] = "auto"
+    address_check_period: float = _check(_positive, default=2.0)
 
 
 @dataclass

@@ -1,0 +1,104 @@
+"""Two network namespaces joined by a veth pair: a small LAN for real multicast tests.
+
+``with Lan() as lan:`` creates namespaces ``<tag>s`` (the server side) and
+``<tag>c`` (the client side), names unique per run, each with ``lo`` up, one end
+of the veth pair addressed in 10.<n>.<m>.0/24 and a multicast route
+(224.0.0.0/4) on it, then deletes both on exit, also after a failure (deleting a
+namespace deletes its veth end, and the pair with it). ``lan.popen(side, argv)``
+and ``lan.run(side, argv)`` run commands inside a namespace with
+``ip netns exec``. Needs root: :func:`unavailable_reason` says why not.
+"""
+
+import os
+import random
+import subprocess
+import uuid
+
+SERVER, CLIENT = "s", "c"
+VETH = {SERVER: "lan-s", CLIENT: "lan-c"}
+
+
+def _ip(*args, check=True):
+    return subprocess.run(["ip", *args], capture_output=True, text=True, check=check, timeout=20)
+
+
+def unavailable_reason():
+    """None when ``ip netns add`` works here; otherwise why the LAN tests cannot run."""
+    probe = "fmsprobe{}".format(uuid.uuid4().hex[:8])
+    try:
+        result = _ip("netns", "add", probe, check=False)
+    except (OSError, subprocess.SubprocessError) as exc:
+        return "`ip netns` is not available ({}): real-multicast mDNS tests need iproute2 and root".format(exc)
+    if result.returncode != 0:
+        return "`ip netns add` failed ({}): real-multicast mDNS tests need root (CI has it)".format(
+            result.stderr.strip() or "exit {}".format(result.returncode))
+    _ip("netns", "del", probe, check=False)
+    return None
+
+
+class Lan:
+    """Two namespaces and a veth pair between them; closed (deleted) exactly once."""
+
+    def __init__(self):
+        tag = "fms{}{}".format(os.getpid() % 100000, uuid.uuid4().hex[:6])
+        self.names = {SERVER: tag + "s", CLIENT: tag + "c"}
+        subnet = "10.{}.{}".format(random.randint(100, 250), random.randint(0, 250))
+        self.subnet = subnet
+        self.addresses = {SERVER: subnet + ".1", CLIENT: subnet + ".2"}
+        self._created = []
+
+    def __enter__(self):
+        try:
+            self.create()
+        except BaseException:
+            self.close()
+            raise
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+    def create(self):
+        for side in (SERVER, CLIENT):
+            _ip("netns", "add", self.names[side])
+            self._created.append(self.names[side])
+        _ip("link", "add", VETH[SERVER], "netns", self.names[SERVER], "type", "veth",
+            "peer", "name", VETH[CLIENT], "netns", self.names[CLIENT])
+        for side in (SERVER, CLIENT):
+            self.ip(side, "link", "set", "lo", "up")
+            self.ip(side, "addr", "add", self.addresses[side] + "/24", "dev", VETH[side])
+            self.ip(side, "link", "set", VETH[side], "up")
+            self.ip(side, "route", "add", "224.0.0.0/4", "dev", VETH[side])
+
+    def ip(self, side, *args):
+        """Run ``ip ARGS`` inside one side's namespace (raises on failure)."""
+        return _ip("-n", self.names[side], *args)
+
+    def change_address(self, side, new_address):
+        """Replace the side's address on its veth end, as a DHCP client does on a new lease.
+
+        Removing the last address flushes the device's routes, so the multicast
+        route is put back, as a DHCP client restores the default route.
+        """
+        old = self.addresses[side]
+        self.ip(side, "addr", "del", old + "/24", "dev", VETH[side])
+        self.ip(side, "addr", "add", new_address + "/24", "dev", VETH[side])
+        self.ip(side, "route", "replace", "224.0.0.0/4", "dev", VETH[side])
+        self.addresses[side] = new_address
+
+    def command(self, side, argv):
+        """``argv`` prefixed to run inside the side's namespace."""
+        return ["ip", "netns", "exec", self.names[side], *argv]
+
+    def popen(self, side, argv, **kw):
+        """Start ``argv`` inside the side's namespace; returns the Popen."""
+        return subprocess.Popen(self.command(side, argv), **kw)
+
+    def run(self, side, argv, timeout=30, **kw):
+        """Run ``argv`` inside the side's namespace to completion; returns CompletedProcess."""
+        return subprocess.run(self.command(side, argv), timeout=timeout, **kw)
+
+    def close(self):
+        """Delete both namespaces (and the veth pair with them). Idempotent."""
+        while self._created:
+            _ip("netns", "del", self._created.pop(), check=False)
