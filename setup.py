@@ -30,6 +30,7 @@ setup(
         "PyYAML>=5.3",
         "requests>=2.22",
         "zeroconf>=0.47",
+        "ifaddr>=0.1.7",  # zeroconf's own dependency; mdns.py polls the interfaces with it
         "pyserial>=3.4",
     ],
     extras_require={
