@@ -67,9 +67,9 @@ class KeyboardDriver:
                               "(for scripts use 'robotctl teleop LIN ANG').", ExitStatus.USAGE)
         fd = stdin.fileno()
         self._out = stdout
-        self._show(HELP + "\r\n")
         try:
             with _cbreak(fd), _signals_raise_hangup():
+                self._show(HELP + "\r\n")  # once keys are read one by one: typing may start now
                 self._loop(fd)
         except (KeyboardInterrupt, _Hangup):
             pass
