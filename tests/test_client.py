@@ -5,6 +5,7 @@ import io
 import json
 import os
 import pty
+import signal
 import socket
 import subprocess
 import sys
@@ -348,3 +349,18 @@ def test_drive_stops_the_robot_when_the_terminal_closes(live):
 def test_drive_needs_a_terminal(live, capsys):
     assert robotctl(live, "drive") == ExitStatus.USAGE  # pytest's stdin is not a tty
     assert "drive needs a terminal" in capsys.readouterr().err
+
+
+def test_ctrl_c_while_waiting_stops_the_robot(live):
+    proc = subprocess.Popen([sys.executable, "-m", "flask_move_server.client", "--url", live.url,
+                             "goto", "forever", "--wait"], cwd=ROOT, stderr=subprocess.PIPE, text=True)
+    try:
+        assert proc.stderr.readline().startswith("forever: active")
+        proc.send_signal(signal.SIGINT)
+        assert proc.wait(30) == ExitStatus.INTERRUPTED
+        assert proc.stderr.read() == "interrupted: the robot was stopped.\n"
+    finally:
+        stop_process(proc)
+        proc.stderr.close()
+    assert live.calls[-1][:2] == ("POST", "/stop")
+    wait_for(lambda: live.robot.navigator.status()["state"] == "canceled", message="the goal canceled")

@@ -42,6 +42,13 @@ def parse_args(argv):
 
 def main(argv=None):
     """Run the recorder until quit, Ctrl-C or end of input; the exit status."""
+    try:
+        return _main(argv)
+    except KeyboardInterrupt:  # Ctrl-C while starting: nothing was saved yet
+        return _fail("interrupted.", ExitStatus.INTERRUPTED)
+
+
+def _main(argv):
     from flask_move_server.cli import split_ros_args
     from flask_move_server.ros import master
 
