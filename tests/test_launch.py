@@ -38,8 +38,9 @@ def ros_env(tmp_path=None):
     """Environment where our package and the stand-ins are on ROS_PACKAGE_PATH."""
     env = dict(os.environ)
     env["ROS_PACKAGE_PATH"] = os.pathsep.join([ROOT, STUBS])
-    env.pop("FLASK_MOVE_SERVER_CONFIG", None)
-    env.pop("FLASK_MOVE_SERVER_MAP", None)
+    for name in ("FLASK_MOVE_SERVER_CONFIG", "FLASK_MOVE_SERVER_MAP", "ROBOT_START_X", "ROBOT_START_Y",
+                 "ROBOT_START_YAW"):
+        env.pop(name, None)  # the robot's environment must not leak into the defaults checked here
     if tmp_path is not None:
         env["ROS_HOME"] = str(tmp_path)
         env["ROS_LOG_DIR"] = str(tmp_path / "log")
@@ -136,6 +137,14 @@ def launch_config(name, args=(), monkeypatch=None):
 
     monkeypatch.setenv("ROS_PACKAGE_PATH", ros_env()["ROS_PACKAGE_PATH"])
     return roslaunch.config.load_config_default([(launch_path(name), list(args))], None, verbose=False)
+
+
+def test_start_pose_comes_from_the_robot_environment():
+    env = ros_env()
+    env.update(ROBOT_START_X="2.5", ROBOT_START_YAW="1.57")
+    params = yaml.safe_load(roslaunch("--dump-params", launch_path("navigation.launch"), env=env))
+    assert (params["/amcl/initial_pose_x"], params["/amcl/initial_pose_y"], params["/amcl/initial_pose_a"]) == (
+        2.5, 0.0, 1.57)
 
 
 def test_laser_pose_args_reach_the_static_transform(monkeypatch):
