@@ -2,8 +2,8 @@
 
 The server process (started like systemd starts it, with $NOTIFY_SOCKET and $WATCHDOG_USEC)
 must say READY=1 only when HTTP answers, ping WATCHDOG=1 while it serves, and STOPPING=1 on
-SIGTERM. In-process, a dead HTTP server must stop the pings. safe-stop drives the L298N pins
-low through the recording RPi.GPIO stand-in.
+SIGTERM. In-process, an HTTP server whose requests hang gets no pings until it answers again.
+safe-stop drives the L298N pins low through the recording RPi.GPIO stand-in.
 """
 
 import re
@@ -15,7 +15,7 @@ import pytest
 import requests
 
 from flask_move_server import systemd
-from tests.conftest import run_cli, serve, stop_process, wait_for
+from tests.conftest import run_cli, stop_process, wait_for
 from tests.standins.gpio import RecordingGPIO
 
 
@@ -73,29 +73,60 @@ def _port_from_log(proc):
     return wait_for(port, timeout=30, message="the server's port in its log")
 
 
-def test_no_watchdog_pings_while_http_is_dead(notify_socket):
+class _HealthServer:
+    """A real HTTP server on a free port whose /health can be made to hang, like a stuck loop."""
+
+    def __init__(self):
+        import http.server
+        import threading
+
+        self.hang = threading.Event()
+        self.release = threading.Event()
+        outer = self
+
+        class Handler(http.server.BaseHTTPRequestHandler):
+            def do_GET(self):  # noqa: N802 (http.server's name)
+                if outer.hang.is_set():
+                    outer.release.wait(10)
+                self.send_response(200)
+                self.end_headers()
+                self.wfile.write(b'{"status": "ok"}')
+
+            def log_message(self, *args):
+                pass
+
+        self.httpd = http.server.ThreadingHTTPServer(("127.0.0.1", 0), Handler)
+        self.httpd.daemon_threads = True
+        self.port = self.httpd.server_address[1]
+        self.thread = threading.Thread(target=self.httpd.serve_forever, name="test-health", daemon=True)
+        self.thread.start()
+
+    def close(self):
+        self.release.set()
+        self.httpd.shutdown()
+        self.httpd.server_close()
+        self.thread.join(5)
+
+
+def test_watchdog_pings_stop_while_http_hangs_and_resume_after(notify_socket):
     path, sock = notify_socket
-
-    def app(environ, start_response):
-        start_response("200 OK", [("Content-Type", "application/json")])
-        return [b'{"status": "ok"}']
-
-    notifier = systemd.Notifier({"NOTIFY_SOCKET": path})
-    with serve(app) as url:
-        port = int(url.rsplit(":", 1)[1])
-        supervisor = systemd.Supervisor("127.0.0.1", port, notifier, interval=0.4).start()
-        try:
-            receive(sock, "READY=1")
-            receive(sock, "WATCHDOG=1")
-        except BaseException:
-            supervisor.close()
-            raise
-    # The HTTP server is closed now: drain what was in flight, then expect silence.
-    time.sleep(0.5)
-    _drain(sock)
-    time.sleep(1.0)
-    assert _drain(sock) == []
-    supervisor.close()
+    http = _HealthServer()
+    supervisor = systemd.Supervisor("127.0.0.1", http.port, systemd.Notifier({"NOTIFY_SOCKET": path}), interval=0.8)
+    try:
+        supervisor.start()
+        receive(sock, "READY=1")
+        receive(sock, "WATCHDOG=1")
+        http.hang.set()  # requests now hang: the server is alive but not serving
+        time.sleep(0.8)
+        _drain(sock)  # a ping already in flight when it hung
+        time.sleep(1.5)
+        assert _drain(sock) == []
+        http.hang.clear()
+        http.release.set()
+        receive(sock, "WATCHDOG=1")
+    finally:
+        supervisor.close()
+        http.close()
     assert "STOPPING=1" in receive(sock, "STOPPING=1")[-1]
     supervisor.close()  # idempotent
 
