@@ -253,6 +253,8 @@ class Advertiser:
         """
         host, name = hostname, instance
         for number in range(2, 10):
+            if self._stop.is_set():
+                break
             records = discovery.ask(conflict_questions(host if addresses is not None else None, name),
                                     CONFLICT_QUERY_TIME)
             other_hosts, name_taken = conflicts(records, host, name, addresses or ())

@@ -151,3 +151,19 @@ def test_the_advertiser_closes_safely_twice_even_unstarted():
     advertiser.close()
     advertiser.close()
     assert advertiser.start().published is None
+
+
+def test_with_avahi_running_the_host_name_is_left_to_avahi(tmp_path):
+    pid_file = tmp_path / "pid"
+    pid_file.write_text("{}\n".format(os.getpid()))
+    system = socket.gethostname().split(".")[0]
+    for settings, pid_path, expected in [
+        (config.MdnsConfig(), pid_file, (system, system, False)),
+        (config.MdnsConfig(instance="Kitchen bot"), pid_file, (system, "Kitchen bot", False)),
+        (config.MdnsConfig(publish_hostname="never"), tmp_path / "none", (system, system, False)),
+        (config.MdnsConfig(publish_hostname="always"), pid_file, ("robot", "robot", True)),
+        (config.MdnsConfig(), tmp_path / "none", ("robot", "robot", True)),
+    ]:
+        advertiser = mdns.Advertiser(settings, "0.0.0.0", 5000, False, avahi_pid_file=str(pid_path))
+        advertiser._stop.set()  # decide the names without asking the network about conflicts
+        assert advertiser._names(("10.0.0.5",)) == expected
