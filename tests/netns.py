@@ -1,20 +1,23 @@
 """Two network namespaces joined by a veth pair: a small LAN for real multicast tests.
 
-``with Lan() as lan:`` creates namespaces ``<tag>s`` (the server side) and
-``<tag>c`` (the client side), names unique per run, each with ``lo`` up, one end
+``with Lan() as lan:`` creates namespaces ``fmslan<pid>x<random>s`` (the server
+side) and ``...c`` (the client side), unique per run, each with ``lo`` up, one end
 of the veth pair addressed in 10.<n>.<m>.0/24 and a multicast route
 (224.0.0.0/4) on it, then deletes both on exit, also after a failure (deleting a
-namespace deletes its veth end, and the pair with it). ``lan.popen(side, argv)``
+namespace deletes its veth end, and the pair with it); namespaces of test
+processes that were killed outright are swept away by the next run. ``lan.popen(side, argv)``
 and ``lan.run(side, argv)`` run commands inside a namespace with
 ``ip netns exec``. Needs root: :func:`unavailable_reason` says why not.
 """
 
 import os
 import random
+import re
 import subprocess
 import uuid
 
 SERVER, CLIENT = "s", "c"
+PREFIX = "fmslan"
 VETH = {SERVER: "lan-s", CLIENT: "lan-c"}
 
 
@@ -36,11 +39,19 @@ def unavailable_reason():
     return None
 
 
+def sweep_stale():
+    """Delete namespaces left by test processes that died without cleaning up (SIGKILL)."""
+    listing = _ip("netns", "list", check=False).stdout
+    for name in re.findall(r"^({}(\d+)x[0-9a-f]+[sc])\b".format(PREFIX), listing, re.M):
+        if not os.path.exists("/proc/{}".format(name[1])):
+            _ip("netns", "del", name[0], check=False)
+
+
 class Lan:
     """Two namespaces and a veth pair between them; closed (deleted) exactly once."""
 
     def __init__(self):
-        tag = "fms{}{}".format(os.getpid() % 100000, uuid.uuid4().hex[:6])
+        tag = "{}{}x{}".format(PREFIX, os.getpid(), uuid.uuid4().hex[:6])
         self.names = {SERVER: tag + "s", CLIENT: tag + "c"}
         subnet = "10.{}.{}".format(random.randint(100, 250), random.randint(0, 250))
         self.subnet = subnet
@@ -48,6 +59,7 @@ class Lan:
         self._created = []
 
     def __enter__(self):
+        sweep_stale()
         try:
             self.create()
         except BaseException:
