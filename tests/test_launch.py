@@ -38,9 +38,9 @@ def ros_env(tmp_path=None):
     """Environment where our package and the stand-ins are on ROS_PACKAGE_PATH."""
     env = dict(os.environ)
     env["ROS_PACKAGE_PATH"] = os.pathsep.join([ROOT, STUBS])
-    for name in ("FLASK_MOVE_SERVER_CONFIG", "FLASK_MOVE_SERVER_MAP", "ROBOT_START_X", "ROBOT_START_Y",
-                 "ROBOT_START_YAW"):
-        env.pop(name, None)  # the robot's environment must not leak into the defaults checked here
+    for name in list(env):
+        if name.startswith("ROBOT_") or name in ("FLASK_MOVE_SERVER_CONFIG", "FLASK_MOVE_SERVER_MAP"):
+            del env[name]  # the robot's environment must not leak into the defaults checked here
     if tmp_path is not None:
         env["ROS_HOME"] = str(tmp_path)
         env["ROS_LOG_DIR"] = str(tmp_path / "log")
@@ -145,6 +145,18 @@ def test_start_pose_comes_from_the_robot_environment():
     params = yaml.safe_load(roslaunch("--dump-params", launch_path("navigation.launch"), env=env))
     assert (params["/amcl/initial_pose_x"], params["/amcl/initial_pose_y"], params["/amcl/initial_pose_a"]) == (
         2.5, 0.0, 1.57)
+
+
+def test_lidar_and_laser_pose_come_from_the_robot_environment(monkeypatch):
+    for name, value in dict(ROBOT_LIDAR_PORT="/dev/rplidar", ROBOT_LIDAR_BAUDRATE="256000",
+                            ROBOT_LASER_X="0.07", ROBOT_LASER_YAW="3.14159").items():
+        monkeypatch.setenv(name, value)
+    for launch in ("mapping.launch", "navigation.launch"):
+        config = launch_config(launch, [], monkeypatch)
+        (tf,) = [n for n in config.nodes if n.name == "base_link_to_laser"]
+        assert tf.args.split()[:4] == ["0.07", "0.0", "0.12", "3.14159"]
+        params = {p.key: p.value for p in config.params.values()}
+        assert params["/rplidar/serial_port"] == "/dev/rplidar" and params["/rplidar/serial_baudrate"] == 256000
 
 
 def test_laser_pose_args_reach_the_static_transform(monkeypatch):
