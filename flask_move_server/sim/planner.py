@@ -25,8 +25,9 @@ class Planner:
     def __init__(self, costmap):
         self.costmap = costmap
         w = costmap.width
-        self._steps = [(1, 1.0), (-1, 1.0), (w, 1.0), (-w, 1.0),
-                       (w + 1, SQRT2), (w - 1, SQRT2), (-w + 1, SQRT2), (-w - 1, SQRT2)]
+        # (index offset, cost of the step into a cell of each cost value): 8-connected, margin cells dearer
+        self._steps = [(off, [length * (1 + c) for c in range(256)]) for off, length in (
+            (1, 1.0), (-1, 1.0), (w, 1.0), (-w, 1.0), (w + 1, SQRT2), (w - 1, SQRT2), (-w + 1, SQRT2), (-w - 1, SQRT2))]
 
     def check_goal(self, x, y):
         """Raise PlanningFailed when no robot could ever stand at (x, y)."""
@@ -73,12 +74,12 @@ class Planner:
 
     def _search(self, start, goal):
         """A* from ``start`` to ``goal`` (padded indices); the cell indices of the path, or None."""
-        cost, width, steps = self.costmap.cost, self.costmap.width, self._steps
-        size = len(cost)
-        g = array("d", [math.inf]) * size
-        parent = array("l", [-1]) * size
-        closed = bytearray(size)
+        width = self.costmap.width
+        work = bytearray(self.costmap.cost)  # LETHAL also marks the cells already expanded
+        g = array("d", [math.inf]) * len(work)
+        parent = array("l", [-1]) * len(work)
         goal_row, goal_col = divmod(goal, width)
+        diagonal = SQRT2 - 2.0
         g[start] = 0.0
         heap = [(0.0, start)]
         pop, push = heapq.heappop, heapq.heappush
@@ -86,39 +87,50 @@ class Planner:
             _, p = pop(heap)
             if p == goal:
                 return _walk_back(parent, goal)
-            if closed[p]:
+            if work[p] == LETHAL:
                 continue
-            closed[p] = 1
+            work[p] = LETHAL
             gp = g[p]
-            for off, step in steps:
+            for off, step_cost in self._steps:
                 q = p + off
-                c = cost[q]
-                if c == LETHAL or closed[q]:
+                c = work[q]
+                if c == LETHAL:
                     continue
-                ng = gp + step * (1 + c)
+                ng = gp + step_cost[c]
                 if ng < g[q]:
                     g[q] = ng
                     parent[q] = p
                     row, col = divmod(q, width)
-                    dr, dc = abs(row - goal_row), abs(col - goal_col)
-                    h = (dr + dc) + (SQRT2 - 2.0) * (dr if dr < dc else dc)
-                    push(heap, (ng + h, q))
+                    dr = row - goal_row if row > goal_row else goal_row - row
+                    dc = col - goal_col if col > goal_col else goal_col - col
+                    push(heap, (ng + dr + dc + diagonal * (dr if dr < dc else dc), q))
         return None
 
     def _shortcut(self, cells):
-        """Keep the corners of the cell path that a straight line cannot skip at no extra cost."""
-        if len(cells) <= 2:
-            return list(cells)
+        """Keep the corners of the cell path that a straight line cannot skip at no extra cost.
+
+        From each corner, the farthest cell still in straight sight is found by galloping then
+        bisecting, so a long path costs a few line checks per corner, not one per cell.
+        """
+        last = len(cells) - 1
         corners = [cells[0]]
-        anchor, i = cells[0], 1
-        while i < len(cells) - 1:
-            if self._line_clear(anchor, cells[i + 1]):
-                i += 1
-                continue
-            anchor = cells[i]
-            corners.append(anchor)
-            i += 1
-        corners.append(cells[-1])
+        a = 0
+        while a < last:
+            seen, blocked, step = a + 1, None, 1
+            while blocked is None and seen < last:
+                j = min(seen + step, last)
+                if self._line_clear(cells[a], cells[j]):
+                    seen, step = j, step * 2
+                else:
+                    blocked = j
+            while blocked is not None and blocked - seen > 1:
+                mid = (seen + blocked) // 2
+                if self._line_clear(cells[a], cells[mid]):
+                    seen = mid
+                else:
+                    blocked = mid
+            corners.append(cells[seen])
+            a = seen
         return corners
 
     def _line_clear(self, a, b):

@@ -45,7 +45,9 @@ class SimWorld:
         self._stop = threading.Event()
         self._thread = None
         self._pubs = None
-        self.steps = 0
+        self.steps = 0  # world updates so far, and the longest gap between two (real time kept?)
+        self.started = None
+        self.longest_step = 0.0
         node.when_ready(self._setup)
 
     def _setup(self):
@@ -75,12 +77,14 @@ class SimWorld:
     def _run(self):
         period = 1.0 / self.config.rate
         scan_period = 1.0 / self.config.scan_rate if self.config.scan_rate > 0 else None
-        last = next_scan = time.monotonic()
+        last = next_scan = next_step = self.started = time.monotonic()
         self._history.append((rospy.get_time(), self.body.pose))
-        while not self._stop.wait(period):
+        while not self._stop.wait(max(0.0, next_step + period - time.monotonic())):
             now = time.monotonic()
+            next_step = max(next_step + period, now - period)  # behind by more than a step: do not catch up
             left, right = self._wheel_speeds()
             pose = self.body.step(left, right, (now - last) * self.config.speed_factor)
+            self.longest_step = max(self.longest_step, now - last)
             last = now
             self.steps += 1
             self._history.append((rospy.get_time(), pose))
@@ -121,9 +125,15 @@ class SimWorld:
 
     def close(self):
         """Stop moving the robot and publishing. Idempotent."""
+        if self._stop.is_set():
+            return
         self._stop.set()
         if self._thread is not None and self._thread is not threading.current_thread():
             self._thread.join(timeout=2)
+        if self.started is not None:
+            elapsed = time.monotonic() - self.started
+            log.info("simulated world: %d updates in %.1f s (%.1f Hz, target %.0f Hz), longest gap %.0f ms",
+                     self.steps, elapsed, self.steps / max(elapsed, 1e-9), self.config.rate, self.longest_step * 1e3)
         if self._pubs is not None:
             self._odom_sub.unregister()
             for name in ("map", "scan", "amcl"):
