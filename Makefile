@@ -50,6 +50,24 @@ test-debian: $(DEBIAN_VENV)/.installed
 run: setup
 	$(VENV)/bin/flask-move-server --host 127.0.0.1 --waypoints config/waypoints.example.yaml
 
+# The simulated robot on the demo flat (make demo): its own ROS master, world and move_base stand-in.
+# Waypoints are copied once to build/demo/, so PUT /waypoints never edits the shipped file.
+DEMO_PORT ?= 5000
+DEMO_URL := http://127.0.0.1:$(DEMO_PORT)
+DEMO_WAYPOINTS ?= build/demo/waypoints.yaml
+
+demo: setup
+	@mkdir -p $(dir $(DEMO_WAYPOINTS))
+	@test -f $(DEMO_WAYPOINTS) || cp config/waypoints.demo.yaml $(DEMO_WAYPOINTS)
+	@echo "Simulated robot on $(DEMO_URL) (Ctrl-C stops it). In another terminal, try:"
+	@echo "  curl $(DEMO_URL)/waypoints"
+	@echo "  curl -d '{\"name\": \"kitchen\"}' $(DEMO_URL)/goto"
+	@echo "  watch -n 0.5 curl -s $(DEMO_URL)/status"
+	@echo "  curl -d '{\"name\": \"office\", \"wait\": 120}' $(DEMO_URL)/goto"
+	@echo "  curl -X POST $(DEMO_URL)/stop"
+	@echo "  curl -d '{\"linear\": 0.2, \"angular\": 0.5}' $(DEMO_URL)/teleop"
+	$(VENV)/bin/flask-move-server --sim --port $(DEMO_PORT) --waypoints $(DEMO_WAYPOINTS) $(DEMO_ARGS)
+
 bench: setup
 	$(PY) -m bench
 
