@@ -138,7 +138,7 @@ def _next_line(lines, predicate, what, timeout=30):
         raise AssertionError("{}; the recorder said last: {}".format(what, seen[-5:]))
 
 
-def test_ctrl_c_while_saving_leaves_the_file_valid_and_complete(ros_master, unique_name, tmp_path):
+def test_ctrl_c_while_saving_leaves_the_file_valid_and_complete(ros_node, unique_name, tmp_path):
     big = tmp_path / "big.yaml"  # a big file makes every save take a while
     big.write_text("waypoints:\n" + "".join("  old{}: [{}.5, 1.0, 0.0]\n".format(i, i) for i in range(3000)))
     topic = "/{}/clicked_point".format(unique_name)
@@ -194,3 +194,21 @@ def test_no_ros_master_says_what_to_do(tmp_path):
     assert proc.returncode == ExitStatus.UNREACHABLE
     assert proc.stderr.startswith("record-waypoints: no ROS master answers at http://127.0.0.1:")
     assert "start roscore" in proc.stderr and "Traceback" not in proc.stderr
+
+
+def test_a_ctrl_c_during_a_save_takes_effect_right_after_it(tmp_path):
+    from flask_move_server.recorder.prompt import interrupts_deferred
+    from flask_move_server.waypoints import make_waypoint
+
+    saver = FileSaver(str(tmp_path / "w.yaml"))
+    done = []
+    try:
+        with interrupts_deferred():
+            os.kill(os.getpid(), signal.SIGINT)  # as if Ctrl-C landed mid-save
+            saver.put(make_waypoint("kitchen", 1, 2, 3))
+            done.append("reported")
+    except KeyboardInterrupt:
+        done.append("interrupted")
+    assert done == ["reported", "interrupted"]
+    assert list(parse((tmp_path / "w.yaml").read_text())) == ["kitchen"]
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
