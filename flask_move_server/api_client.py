@@ -73,7 +73,7 @@ class RobotClient:
         try:
             response = self._send(method, path, body, timeout)
         except requests.ConnectionError as exc:
-            if not self._try_mdns_fallback():
+            if _connection_reason(exc) != _UNRESOLVED or not self._try_mdns_fallback():
                 raise self._unreachable(exc)
             try:
                 response = self._send(method, path, body, timeout)
@@ -162,10 +162,13 @@ def _json_of(response):
         return {"raw": response.text[:200]}
 
 
+_UNRESOLVED = "its name does not resolve"
+
+
 def _connection_reason(exc):
     text = str(exc)
     if "resolve" in text or "Name or service not known" in text or "nodename nor servname" in text:
-        return "its name does not resolve"
+        return _UNRESOLVED
     if "refused" in text.lower():
         return "connection refused"
     if "timed out" in text.lower():
