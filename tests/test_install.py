@@ -74,6 +74,30 @@ def test_lays_out_the_robot(installed):
         assert "include-system-site-packages = true" in f.read()  # so the venv sees rospy
 
 
+def test_commands_are_on_the_path_and_login_shells_get_ros(installed, tmp_path):
+    root, _ = installed
+    for name in ("flask-move-server", "robotctl", "record-waypoints", "ros-exec"):
+        link = os.path.join(str(root), "usr/local/bin", name)
+        assert os.readlink(link) == "/opt/flask-move-server/bin/" + name
+        assert os.path.exists(os.path.join(str(root), "opt/flask-move-server/bin", name))
+    # The profile script, sourced by a POSIX shell with this root's env file and a ROS setup.
+    profile = (root / "etc/profile.d/flask-move-server.sh").read_text()
+    etc = str(root / "etc/flask-move-server")
+    setup = tmp_path / "setup.sh"
+    setup.write_text("ROS_DISTRO=noetic; export ROS_DISTRO\n")
+    with open(os.path.join(etc, "ros.env"), encoding="utf-8") as f:
+        env_text = f.read().replace("ROS_SETUP=/opt/ros-catkin/install_isolated/setup.bash",
+                                    "ROS_SETUP={}".format(tmp_path / "setup.bash"))
+    (tmp_path / "ros.env").write_text(env_text)
+    script = profile.replace("/etc/flask-move-server/ros.env", str(tmp_path / "ros.env"))
+    out = subprocess.run(["sh", "-c", script + "\nenv"], capture_output=True, text=True, timeout=30,
+                         env={"PATH": os.environ["PATH"], "ROS_HOME": "/home/me/.ros"}).stdout
+    seen = dict(line.split("=", 1) for line in out.splitlines() if "=" in line)
+    assert seen["ROS_DISTRO"] == "noetic" and seen["ROS_MASTER_URI"] == "http://localhost:11311"
+    assert seen["ROS_PACKAGE_PATH"].startswith("/opt/flask-move-server/share")
+    assert seen["ROS_HOME"] == "/home/me/.ros"  # the units' log folder is robot's, not the login user's
+
+
 def test_token_is_0600_and_printed_once(installed, tmp_path):
     root, first = installed
     token = token_of(root)
