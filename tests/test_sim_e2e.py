@@ -186,6 +186,29 @@ def test_rviz_sees_the_map_and_the_scan(sim):
     assert 0.15 <= nearest and farthest <= 8.0
 
 
+_RVIZ_GOAL = """
+import rospy
+from geometry_msgs.msg import PoseStamped
+rospy.init_node("rviz_goal", anonymous=True, disable_signals=True)
+pub = rospy.Publisher("/move_base_simple/goal", PoseStamped, queue_size=1, latch=True)
+goal = PoseStamped()
+goal.header.frame_id = "map"
+goal.pose.position.x, goal.pose.position.y, goal.pose.orientation.w = 1.5, 1.0, 1.0
+while pub.get_num_connections() == 0:
+    rospy.sleep(0.05)
+pub.publish(goal)
+rospy.sleep(1.0)
+"""
+
+
+def test_an_rviz_nav_goal_on_move_base_simple_drives_the_robot(sim):
+    env = dict(os.environ, ROS_MASTER_URI=sim.master_uri, ROS_IP="127.0.0.1")
+    out = subprocess.run([sys.executable, "-c", _RVIZ_GOAL], env=env, capture_output=True, text=True, timeout=60)
+    assert out.returncode == 0, out.stderr
+    wait_for(lambda: _close_to(sim.pose(), 1.5, 1.0, 0.0) and _still(sim, 0.3), timeout=60,
+             message="the robot at the RViz goal (1.5, 1.0)")
+
+
 def test_sigterm_stops_everything_including_its_master(sim):
     master_pid = _rosmaster_pid(sim.master_port)
     assert master_pid is not None

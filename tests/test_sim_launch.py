@@ -1,4 +1,4 @@
-"""``roslaunch flask_move_server sim.launch``: the simulated robot through real roslaunch.
+"""``roslaunch flask_move_server sim.launch``, and ``--sim`` refusing what it cannot simulate.
 
 The checkout is the ROS package (package.xml at its root), put on
 ROS_PACKAGE_PATH. roslaunch starts the master on a free port, the node
@@ -11,9 +11,10 @@ import shutil
 import signal
 import subprocess
 
+import pytest
 import requests
 
-from tests.conftest import ROOT, free_port, stop_process, wait_for
+from tests.conftest import ROOT, free_port, run_cli, stop_process, wait_for
 
 
 def _processes_mentioning(text):
@@ -70,3 +71,20 @@ def _health(url):
     except (requests.RequestException, ValueError):
         return None
     return body if body.get("move_base") == "ready" else None
+
+
+@pytest.mark.parametrize("args, expected", [
+    (["--map", "no-such-map.yaml"], "no-such-map.yaml: cannot read the map"),
+    (["--motor-backend", "none"], "drive.backend: --sim needs the sim motor backend"),
+])
+def test_sim_refuses_what_it_cannot_simulate_and_leaves_no_master(tmp_path, args, expected):
+    master_port = free_port()
+    env = {"ROS_MASTER_URI": "http://127.0.0.1:{}".format(master_port), "ROS_HOME": str(tmp_path)}
+    proc = run_cli("--sim", "--port", "0", "--no-mdns", "--waypoints", str(tmp_path / "w.yaml"), *args,
+                   env=env, cwd=str(tmp_path))
+    try:
+        _, err = proc.communicate(timeout=60)
+    finally:
+        stop_process(proc)
+    assert proc.returncode == 2 and expected in err, err
+    assert not _processes_mentioning("-p {}".format(master_port))
