@@ -101,7 +101,7 @@ class MoveBaseStandIn:
     def _follow(self, follower, target):
         """Drive along the path until reached, preempted or stuck: (outcome, text)."""
         factor = self.config.speed_factor
-        period = 1.0 / (self.config.control_rate * factor)
+        period = max(0.01, 1.0 / (self.config.control_rate * factor))  # at most 100 Hz, however fast the sim
         stuck = _ProgressWatch(self.config.stuck_timeout / factor)
         settle_until = None
         while not rospy.is_shutdown() and not self._closed.is_set():
