@@ -51,7 +51,9 @@ def roslaunch(*args, env=None):
     """Run the real roslaunch command; returns stdout, fails the test with stderr on error."""
     exe = shutil.which("roslaunch") or "roslaunch"
     proc = subprocess.run([exe, *args], env=env or ros_env(), capture_output=True, text=True, timeout=60)
-    assert proc.returncode == 0, "roslaunch {} failed:\n{}{}".format(" ".join(args), proc.stdout, proc.stderr)
+    # --dump-params exits 0 even when a file fails to load: anything on stderr is a failure.
+    assert proc.returncode == 0 and not proc.stderr.strip(), "roslaunch {} failed:\n{}{}".format(
+        " ".join(args), proc.stdout, proc.stderr)
     return proc.stdout
 
 
@@ -71,6 +73,14 @@ def dump_params(name, args=()):
 
 def all_launch_files():
     return sorted(os.path.basename(p) for p in glob.glob(os.path.join(LAUNCH_DIR, "*.launch")))
+
+
+def test_a_missing_rosparam_file_fails_the_check(tmp_path):
+    broken = tmp_path / "broken.launch"
+    broken.write_text('<launch><node pkg="amcl" type="amcl" name="amcl">'
+                      '<rosparam file="$(find flask_move_server)/config/amlc.yaml" command="load"/></node></launch>')
+    with pytest.raises(AssertionError, match="amlc.yaml"):
+        roslaunch("--dump-params", str(broken))
 
 
 def test_every_launch_file_has_a_variant_checked():
