@@ -23,7 +23,12 @@ setup(
     python_requires=">=3.8",
     packages=find_packages(include=["flask_move_server", "flask_move_server.*"]),
     include_package_data=True,
-    package_data={"flask_move_server": ["web/static/*", "data/*", "data/maps/*"]},
+    package_data={"flask_move_server": ["web/static/*"]},
+    # The demo map and the documented config, where `--sim` looks for them outside a checkout.
+    data_files=[
+        ("share/flask_move_server/config/maps", ["config/maps/demo.yaml", "config/maps/demo.pgm"]),
+        ("share/flask_move_server/config", ["config/robot.yaml", "config/waypoints.demo.yaml"]),
+    ],
     install_requires=[
         "Flask>=2.2",
         "waitress>=2.1",

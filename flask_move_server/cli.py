@@ -92,7 +92,7 @@ def _apply_flags(config, args):
         config.waypoints.file = os.path.abspath(args.waypoints)
     if args.sim:
         config.sim.enabled = True
-        if args.host is None and config.source == "(defaults)":
+        if args.host is None:  # the simulated robot is this machine's only, unless --host says otherwise
             config.server.host = "127.0.0.1"
         if args.motor_backend is None:
             config.drive.backend = "sim"

@@ -129,3 +129,11 @@ def test_the_server_refuses_the_network_without_a_token():
     _, err = proc.communicate(timeout=30)
     assert proc.returncode == 2
     assert "refusing to serve 0.0.0.0 without a token" in err and "--insecure" in err
+
+
+def test_sim_serves_this_machine_only_even_with_a_config_file(tmp_path):
+    path = _write(tmp_path, "server:\n  port: 6000\n")
+    loaded = cli.load_config(cli.parse_args(["--config", path, "--sim"]), [])
+    assert loaded.server.host == "127.0.0.1" and loaded.drive.backend == "sim"
+    loaded = cli.load_config(cli.parse_args(["--config", path, "--sim", "--host", "0.0.0.0", "--insecure"]), [])
+    assert loaded.server.host == "0.0.0.0"
