@@ -31,6 +31,12 @@ class BadRequest(MoveServerError, ValueError):
     code = "bad_request"
 
 
+class BodyTooLarge(BadRequest):
+    """The request body is larger than ``server.max_body_bytes``."""
+
+    code = "body_too_large"
+
+
 class BadWaypoint(BadRequest):
     """A waypoint name or coordinate is not valid."""
 

@@ -270,7 +270,13 @@ BAD = [
 ]
 
 
-@pytest.mark.parametrize("method,path,body,status", BAD)
+def _case_id(case):
+    method, path, body, status = case
+    shown = (body or b"")[:24].decode("utf-8", "replace")
+    return "{} {} {}{} -> {}".format(method, path[:30], shown, "..." if body and len(body) > 24 else "", status)
+
+
+@pytest.mark.parametrize("method,path,body,status", BAD, ids=[_case_id(c) for c in BAD])
 def test_bad_input_is_a_json_4xx_and_changes_nothing(client, robot_config, method, path, body, status):
     r = getattr(client, method)(path, data=body, content_type="application/json")
     assert r.status_code == status, r.get_data(as_text=True)[:300]

@@ -18,6 +18,7 @@ log = logging.getLogger(__name__)
 STATUS = (
     (errors.Unauthorized, 401),
     (errors.UnknownWaypoint, 404),
+    (errors.BodyTooLarge, 413),
     (errors.BadRequest, 400),
     (errors.NavigationFailed, 409),
     (errors.NoPose, 409),
