@@ -165,9 +165,14 @@ def _json_of(response):
 _UNRESOLVED = "its name does not resolve"
 
 
+_UNRESOLVED_TEXTS = ("resolve", "name resolution", "Name or service not known", "nodename nor servname")
+
+
 def _connection_reason(exc):
     text = str(exc)
-    if "resolve" in text or "Name or service not known" in text or "nodename nor servname" in text:
+    # urllib3 2 says "Failed to resolve 'robot.local'"; urllib3 1.26 (Debian's) only
+    # "[Errno -3] Temporary failure in name resolution".
+    if any(t in text for t in _UNRESOLVED_TEXTS):
         return _UNRESOLVED
     if "refused" in text.lower():
         return "connection refused"
