@@ -131,9 +131,70 @@ def serve(app, host="127.0.0.1"):
     try:
         yield "http://{}:{}".format(host, server.effective_port)
     finally:
-        server.close()
-        server.task_dispatcher.shutdown()
+        stop_waitress(server)
         thread.join(5)
+
+
+def stop_waitress(server):
+    """Stop a waitress server running in another thread: close every channel from inside its loop."""
+    from waitress import wasyncore
+
+    try:
+        server.trigger.pull_trigger(lambda: wasyncore.close_all(server._map))
+    except OSError:
+        pass  # the trigger is closed: the loop has ended already
+    server.task_dispatcher.shutdown()
+
+
+class ServerProcess:
+    """``flask-move-server ARGS`` in a child process, its stderr collected as it comes."""
+
+    def __init__(self, *args, env=None, start_timeout=30):
+        self.proc = run_cli(*args, env=env)
+        self.lines = []
+        self._reader = threading.Thread(target=self._read, daemon=True)
+        self._reader.start()
+        match = wait_for(lambda: self.find(r"serving the API on (http://\S+)") or self.proc.poll() is not None,
+                         timeout=start_timeout, message="the server to log its URL")
+        if match is True:
+            raise AssertionError("the server exited {}:\n{}".format(self.proc.returncode, "".join(self.lines)))
+        self.url = match.group(1)
+
+    def _read(self):
+        for line in self.proc.stderr:
+            self.lines.append(line)
+
+    def find(self, pattern):
+        """The first match of ``pattern`` in the server's log so far, or None."""
+        import re
+
+        for line in list(self.lines):
+            m = re.search(pattern, line)
+            if m:
+                return m
+        return None
+
+    def get(self, path, timeout=10):
+        import requests
+
+        return requests.get(self.url + path, timeout=timeout)
+
+    def post(self, path, body=None, timeout=10):
+        import requests
+
+        return requests.post(self.url + path, json=body, timeout=timeout)
+
+    def stop(self, sig=None, timeout=10):
+        """Send ``sig`` (SIGTERM) and return the exit status."""
+        import signal
+
+        self.proc.send_signal(sig or signal.SIGTERM)
+        code = self.proc.wait(timeout)
+        self._reader.join(5)
+        return code
+
+    def kill(self):
+        stop_process(self.proc)
 
 
 def run_cli(*args, env=None, **kw):
@@ -145,3 +206,36 @@ def run_cli(*args, env=None, **kw):
         [sys.executable, "-m", "flask_move_server", *args],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=full_env, cwd=kw.pop("cwd", ROOT), text=True, **kw
     )
+
+
+# The product's threads; the tests' own servers (waitress in serve()) are the tests' business.
+_OUR_THREAD_MODULES = ("flask_move_server", "zeroconf")
+
+
+def _thread_module(thread):
+    target = getattr(thread, "_target", None)
+    if target is not None:
+        return getattr(target, "__module__", "") or ""
+    return type(thread).__module__
+
+
+@pytest.fixture(autouse=True)
+def no_thread_left_running():
+    """Fail a test that leaves a thread of ours running: every part closes what it starts.
+
+    Threads of session- or module-scoped fixtures exist before the test starts and are not counted;
+    rospy's own connection threads are not ours and not checked.
+    """
+    before = set(threading.enumerate())
+    yield
+
+    def leftover():
+        return [t for t in threading.enumerate()
+                if t not in before and t.is_alive() and _thread_module(t).startswith(_OUR_THREAD_MODULES)]
+
+    deadline = time.monotonic() + 3.0
+    while leftover() and time.monotonic() < deadline:
+        time.sleep(0.05)
+    left = leftover()
+    assert not left, "threads left running: {}".format(
+        ", ".join("{} ({})".format(t.name, _thread_module(t)) for t in left))

@@ -1,56 +1,22 @@
 """The server as a user runs it: a real process, a real master that comes and goes, signals."""
 
-import re
 import signal
-import threading
 import time
 
 import pytest
 import requests
 
-from tests.conftest import free_port, run_cli, start_master, stop_process, wait_for
+from tests.conftest import ServerProcess, free_port, start_master, stop_process, wait_for
 
 
-class ServerProcess:
-    """``flask-move-server`` in a child process, its stderr collected as it comes."""
-
-    def __init__(self, tmp_path, master_port, *extra):
-        self.master_uri = "http://127.0.0.1:{}".format(master_port)
-        env = {"ROS_MASTER_URI": self.master_uri, "ROS_HOME": str(tmp_path), "ROS_IP": "127.0.0.1"}
-        self.proc = run_cli("--host", "127.0.0.1", "--port", "0", "--no-mdns",
-                            "--waypoints", str(tmp_path / "waypoints.yaml"), *extra, env=env)
-        self.lines = []
-        self._reader = threading.Thread(target=self._read, daemon=True)
-        self._reader.start()
-        match = wait_for(lambda: self._find(r"serving the API on (http://\S+)"), timeout=30,
-                         message="the server to log its URL")
-        self.url = match.group(1)
-
-    def _read(self):
-        for line in self.proc.stderr:
-            self.lines.append(line)
-
-    def _find(self, pattern):
-        for line in list(self.lines):
-            m = re.search(pattern, line)
-            if m:
-                return m
-        return None
-
-    def get(self, path):
-        return requests.get(self.url + path, timeout=10)
-
-    def post(self, path, body=None):
-        return requests.post(self.url + path, json=body, timeout=10)
-
-    def stop(self, sig=signal.SIGTERM, timeout=10):
-        self.proc.send_signal(sig)
-        code = self.proc.wait(timeout)
-        self._reader.join(5)
-        return code
-
-    def kill(self):
-        stop_process(self.proc)
+def start_server(tmp_path, master_port, *extra):
+    """The server with its own waypoints, pointed at the master on ``master_port`` (running or not)."""
+    env = {"ROS_MASTER_URI": "http://127.0.0.1:{}".format(master_port), "ROS_HOME": str(tmp_path),
+           "ROS_IP": "127.0.0.1"}
+    server = ServerProcess("--host", "127.0.0.1", "--port", "0", "--no-mdns",
+                           "--waypoints", str(tmp_path / "waypoints.yaml"), *extra, env=env)
+    server.master_uri = env["ROS_MASTER_URI"]
+    return server
 
 
 @pytest.fixture
@@ -63,7 +29,7 @@ def server_factory(tmp_path):
     servers = []
 
     def make(master_port, *extra):
-        servers.append(ServerProcess(tmp_path, master_port, *extra))
+        servers.append(start_server(tmp_path, master_port, *extra))
         return servers[-1]
 
     yield make
@@ -98,7 +64,7 @@ def test_a_signal_stops_the_server_with_status_0(server_factory, master_port, si
         started = time.monotonic()
         assert server.stop(sig) == 0
         assert time.monotonic() - started < 10
-        assert server._find("received {}, stopping".format(sig.name))
+        assert server.find("received {}, stopping".format(sig.name))
         with pytest.raises(requests.ConnectionError):
             server.get("/health")
     finally:
@@ -116,6 +82,6 @@ def test_a_lost_master_shows_in_health_and_a_new_one_restarts_the_server(server_
         assert server.post("/goto", {"x": 1, "y": 2}).status_code == 503
         master = start_master(master_port)
         assert server.proc.wait(20) == 3, "a replaced master makes the server exit 3 for systemd"
-        assert server._find("a new ROS master answers")
+        assert server.find("a new ROS master answers")
     finally:
         stop_process(master)

@@ -15,21 +15,20 @@ import shutil
 import signal
 import subprocess
 import sys
-import threading
 import time
 
 import pytest
 import requests
 import yaml
 
-from tests.conftest import ROOT, free_port, run_cli, stop_process, wait_for
+from tests.conftest import ROOT, ServerProcess, free_port, stop_process, wait_for
 
 SPEED_FACTOR = 4.0
 DEMO_WAYPOINTS = os.path.join(ROOT, "config", "waypoints.demo.yaml")
 
 
-class SimServer:
-    """``flask-move-server --sim`` in a child process, its stderr collected as it comes."""
+class SimServer(ServerProcess):
+    """``flask-move-server --sim`` in a child process, ready to drive."""
 
     def __init__(self, tmp_path):
         self.master_port = free_port()
@@ -40,33 +39,11 @@ class SimServer:
         config.write_text("sim:\n  speed_factor: {}\n".format(SPEED_FACTOR))
         env = {"ROS_MASTER_URI": self.master_uri, "ROS_HOME": str(tmp_path), "ROS_LOG_DIR": str(tmp_path / "log"),
                "ROS_IP": "127.0.0.1"}
-        self.proc = run_cli("--sim", "--config", str(config), "--host", "127.0.0.1", "--port", "0", "--no-mdns",
-                            "--waypoints", str(self.waypoints), env=env)
-        self.lines = []
-        self._reader = threading.Thread(target=self._read, daemon=True)
-        self._reader.start()
-        self.url = wait_for(lambda: self._find(r"serving the API on (http://\S+)"), timeout=60,
-                            message="the sim server to log its URL\n" + "".join(self.lines)).group(1)
+        super().__init__("--sim", "--config", str(config), "--host", "127.0.0.1", "--port", "0", "--no-mdns",
+                         "--waypoints", str(self.waypoints), env=env, start_timeout=60)
         wait_for(lambda: self.get("/health").json().get("move_base") == "ready", timeout=30,
                  message="move_base stand-in ready")
         wait_for(lambda: self.pose() is not None, timeout=30, message="a pose from tf map -> base_link")
-
-    def _read(self):
-        for line in self.proc.stderr:
-            self.lines.append(line)
-
-    def _find(self, pattern):
-        for line in list(self.lines):
-            m = re.search(pattern, line)
-            if m:
-                return m
-        return None
-
-    def get(self, path):
-        return requests.get(self.url + path, timeout=10)
-
-    def post(self, path, body=None, timeout=10):
-        return requests.post(self.url + path, json=body, timeout=timeout)
 
     def status(self):
         return self.get("/status").json()
@@ -102,7 +79,7 @@ def test_starts_at_the_origin_with_its_own_master(sim):
     pose = sim.pose()
     assert pose["frame"] == "map" and _close_to(pose, 0.0, 0.0, 0.0, 0.01, 0.01)
     assert sim.status()["motors"]["backend"] == "sim"
-    assert sim._find(r"started a ROS master at " + re.escape(sim.master_uri))
+    assert sim.find(r"started a ROS master at " + re.escape(sim.master_uri))
 
 
 @pytest.mark.parametrize("name", ["kitchen", "bedroom", "office", "sofa", "dock"])
