@@ -53,15 +53,15 @@ def split_ros_args(argv):
 def load_config(args, ros_args):
     """The config file, then ROS private params (under roslaunch), then command-line flags."""
     config = config_mod.load(args.config)
-    node_name = _ros_node_name(ros_args)
+    node_name = ros_node_name(ros_args)
     if node_name:
-        config = _apply_private_params(config, node_name)
+        config = apply_private_params(config, node_name)
     _apply_flags(config, args)
     config_mod.check_serving_policy(config)
     return config
 
 
-def _ros_node_name(ros_args):
+def ros_node_name(ros_args):
     remaps = dict(a.split(":=", 1) for a in ros_args)
     name = remaps.get("__name")
     if not name:
@@ -70,7 +70,7 @@ def _ros_node_name(ros_args):
     return "/" + "/".join(p for p in (namespace.strip("/"), name) if p)
 
 
-def _apply_private_params(config, node_name):
+def apply_private_params(config, node_name):
     """Private params mirror the config file's sections (``~server/port``, ``~drive/backend``, ...)."""
     from flask_move_server.ros import master
 

@@ -36,9 +36,9 @@ def parse_args(argv):
 def load_config(args, ros_args):
     """The config file, then private params under roslaunch, then --motor-backend."""
     config = config_mod.load(args.config)
-    node_name = cli._ros_node_name(ros_args)
+    node_name = cli.ros_node_name(ros_args)
     if node_name:
-        config = cli._apply_private_params(config, node_name)
+        config = cli.apply_private_params(config, node_name)
     if args.motor_backend:
         config.drive.backend = args.motor_backend
     if config.drive.backend == "none":
