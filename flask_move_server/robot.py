@@ -61,9 +61,10 @@ class Robot:
 
     def status(self):
         """Everything ``GET /status`` shows."""
+        reading = self.pose.current() if self.node.connected else None  # one pose for both answers
         return {
-            "pose": self.pose.as_dict() if self.node.connected else None,
-            "navigation": self.navigator.status(),
+            "pose": self.pose.as_dict(reading) if reading else None,
+            "navigation": self.navigator.status(reading),
             "teleop": self.teleop_control.status(),
             "motors": self.drive.status(),
             "ros": {"state": self.node.state, "master_uri": self.node.master_uri, "node": self.node.name},

@@ -110,8 +110,8 @@ class Navigator:
     def active(self):
         return self._state == ACTIVE
 
-    def status(self):
-        """The navigation part of ``/status``."""
+    def status(self, reading=None):
+        """The navigation part of ``/status``; ``reading``: the pose to measure from (else looked up)."""
         with self._cond:
             goal, state, seq = self._goal, self._state, self._seq
         return {
@@ -119,7 +119,7 @@ class Navigator:
             "target": goal.target if goal else None,
             "goal": goal.pose.as_dict() if goal else None,
             "goal_id": seq or None,
-            "distance_remaining": self._distance_remaining(goal, state),
+            "distance_remaining": self._distance_remaining(goal, state, reading),
             "interface": self._config.goal_interface,
         }
 
@@ -179,13 +179,13 @@ class Navigator:
             if seq == self._seq:
                 self._feedback_pose = pose
 
-    def _distance_remaining(self, goal, state):
+    def _distance_remaining(self, goal, state, reading=None):
         if goal is None:
             return None
         if state == SUCCEEDED:
             return 0.0
-        pose = self._pose.current()
-        here = pose.pose if pose is not None else self._feedback_pose
+        reading = reading or self._pose.current()
+        here = reading.pose if reading is not None else self._feedback_pose
         return None if here is None else round(here.distance_to(goal.pose), 3)
 
 

@@ -69,7 +69,7 @@ class PoseTracker:
         pose = Pose2D(p.x, p.y, quaternion_to_yaw(o.x, o.y, o.z, o.w))
         self._amcl = PoseReading(pose, msg.header.frame_id or self._frames.map, msg.header.stamp.to_sec(), "amcl_pose")
 
-    def as_dict(self):
-        """The ``pose`` of ``/status``: x, y, yaw, frame, age (s), or None."""
-        reading = self.current()
+    def as_dict(self, reading=None):
+        """The ``pose`` of ``/status``: x, y, yaw, frame, age (s), or None; ``reading``: one taken already."""
+        reading = reading or self.current()
         return None if reading is None else reading.as_dict(rospy.get_time())
