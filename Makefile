@@ -13,7 +13,8 @@ ROS_DEBS := python3-rospy python3-rosmaster python3-roslaunch python3-rosgraph p
 	python3-move-base-msgs python3-tf2-ros python3-geometry-msgs python3-nav-msgs \
 	python3-sensor-msgs python3-visualization-msgs python3-std-msgs python3-venv iproute2
 # systemd-analyze verify and rospack for the deployment tests (units, launch files).
-DEPLOY_TEST_DEBS := systemd rospack-tools
+# python3-wheel: pip's --no-build-isolation installs (installer tests, test-debian) on Debian's setuptools.
+DEPLOY_TEST_DEBS := systemd rospack-tools python3-wheel
 # Debian's own builds of our Python dependencies: what a Pi gets from apt (make test-debian).
 DEBIAN_PY_DEBS := python3-flask python3-waitress python3-yaml python3-requests python3-zeroconf \
 	python3-serial python3-pytest python3-pytest-timeout python3-hypothesis python3-setuptools

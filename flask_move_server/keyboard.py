@@ -149,9 +149,11 @@ class KeyboardDriver:
             linear, angular, self.linear, self.angular))
 
     def _show(self, text):
-        with contextlib.suppress(OSError):
-            self._out.write(text)
+        # Straight to the file descriptor: text left in Python's buffer when the terminal has
+        # closed would fail again at exit and turn the exit status into 120.
+        with contextlib.suppress(OSError, ValueError):
             self._out.flush()
+            os.write(self._out.fileno(), text.encode("utf-8", "replace"))
 
 
 @contextlib.contextmanager

@@ -39,18 +39,22 @@ class Rig:
             return {}
         return (yaml.safe_load(self.file.read_text()) or {}).get("waypoints") or {}
 
-    def publish(self, topic_key, msg_type, msg):
+    def publish(self, topic_key, msg_type, msg, until, message):
+        """Publish ``msg`` and keep the publisher until ``until()`` (unregistering at once can drop it)."""
         pub = rospy.Publisher(self.topics[topic_key], msg_type, queue_size=10)
-        wait_for(lambda: pub.get_num_connections() > 0, message="a subscriber on " + self.topics[topic_key])
-        pub.publish(msg)
-        return pub
+        try:
+            wait_for(lambda: pub.get_num_connections() > 0, message="a subscriber on " + self.topics[topic_key])
+            pub.publish(msg)
+            wait_for(until, message=message)
+        finally:
+            pub.unregister()
 
     def click(self, x, y, frame=None):
         msg = PointStamped()
         msg.header.frame_id = self.map if frame is None else frame
         msg.point.x, msg.point.y = x, y
-        self.publish("clicked_point", PointStamped, msg).unregister()
-        wait_for(lambda: not self.ros.clicks.empty() or not self.ros.problems.empty(), message="the click")
+        self.publish("clicked_point", PointStamped, msg,
+                     lambda: not self.ros.clicks.empty() or not self.ros.problems.empty(), "the click")
         self.session.handle_clicks()
 
     def close(self):
@@ -99,15 +103,13 @@ def test_a_click_asks_for_a_name_and_nav_goal_gives_the_heading(rig):
     goal.pose.position.x = -1.0
     o = goal.pose.orientation
     o.x, o.y, o.z, o.w = yaw_to_quaternion(1.25)
-    rig.publish("goal", PoseStamped, goal).unregister()
-    wait_for(lambda: not rig.ros.clicks.empty(), message="the 2D Nav Goal")
+    rig.publish("goal", PoseStamped, goal, lambda: not rig.ros.clicks.empty(), "the 2D Nav Goal")
     rig.session.handle_clicks()
     assert rig.said[-1].startswith("2D Nav Goal at x -1.00")
     rig.session.handle_line("")
     assert rig.said[-1] == "Skipped that click." and len(rig.file_waypoints()) == 1
 
-    rig.publish("goal", PoseStamped, goal).unregister()
-    wait_for(lambda: not rig.ros.clicks.empty(), message="the 2D Nav Goal again")
+    rig.publish("goal", PoseStamped, goal, lambda: not rig.ros.clicks.empty(), "the 2D Nav Goal again")
     rig.session.handle_clicks()
     rig.session.handle_line("door")
     assert rig.file_waypoints()["door"] == [-1.0, 0.0, pytest.approx(1.25)]
@@ -164,8 +166,7 @@ def test_the_current_pose_from_tf_else_amcl(rig):
     amcl = PoseWithCovarianceStamped()
     amcl.header.frame_id = rig.map
     amcl.pose.pose.position.x, amcl.pose.pose.orientation.w = -3.0, 1.0
-    rig.publish("amcl_pose", PoseWithCovarianceStamped, amcl)
-    wait_for(lambda: rig.ros._amcl is not None, message="the AMCL pose")
+    rig.publish("amcl_pose", PoseWithCovarianceStamped, amcl, lambda: rig.ros._amcl is not None, "the AMCL pose")
     rig.session.handle_line("here dock")
     assert rig.file_waypoints() == {"dock": [-3.0, 0.0, 0.0]}
 

@@ -50,7 +50,7 @@ class RosNode:
         return self.state == CONNECTED
 
     def when_ready(self, callback):
-        """Run ``callback()`` once the node is registered (at once if it is)."""
+        """Run ``callback()`` once the node is registered (at once if it is and set up)."""
         with self._lock:
             if self.state not in (WAITING, CLOSED):
                 run_now = True
@@ -102,16 +102,24 @@ class RosNode:
         if self._stop.is_set():
             return
         self._init_rospy()
-        with self._lock:
-            self.state = CONNECTED
-            callbacks, self._ready_callbacks = self._ready_callbacks, []
-        log.info("connected to the ROS master at %s as %s", uri, self.name)
         # Watch from a thread of its own: a callback registering topics with a master that
         # died meanwhile blocks inside rospy, and the loss must still be noticed.
         self._watcher = threading.Thread(target=self._watch, name="ros-master-watch", daemon=True)
         self._watcher.start()
-        for callback in callbacks:
-            _call(callback)
+        self._run_ready_callbacks()
+        log.info("connected to the ROS master at %s as %s", uri, self.name)
+
+    def _run_ready_callbacks(self):
+        """Set every part up, then say ``connected``: /health must not promise what is not ready."""
+        while True:
+            with self._lock:
+                callbacks, self._ready_callbacks = self._ready_callbacks, []
+                if not callbacks:
+                    if self.state == WAITING:
+                        self.state = CONNECTED
+                    return
+            for callback in callbacks:
+                _call(callback)
 
     def _init_rospy(self):
         import rospy
