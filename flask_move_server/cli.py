@@ -235,7 +235,7 @@ def build_robot(config, node, drive):
     from flask_move_server.ros.pose import PoseTracker
     from flask_move_server.ros.teleop import Teleop
 
-    pose = PoseTracker(config.ros.frames, config.navigation.amcl_pose_topic, node)
+    pose = PoseTracker(config.ros.frames, config.navigation.amcl_pose_topic, node, config.navigation.pose_max_age)
     navigator = Navigator(config.navigation, config.ros.frames, node, pose)
     teleop = Teleop(config.teleop, node)
     return Robot(node, navigator, pose, teleop, drive)

@@ -410,11 +410,3 @@ def merge(base, override):
         else:
             result[key] = value
     return result
-
-
-def as_dict(config):
-    """The configuration as plain data (for logs and ``/status``), token hidden."""
-    data = as_plain(config)
-    if data["server"].get("token"):
-        data["server"]["token"] = "***"
-    return data

@@ -68,12 +68,6 @@ class WaypointFileError(MoveServerError, OSError):
     code = "waypoints_file"
 
 
-class Conflict(MoveServerError, RuntimeError):
-    """The request conflicts with the robot's current state."""
-
-    code = "conflict"
-
-
 class Unauthorized(MoveServerError, PermissionError):
     """The request lacks the configured bearer token, or has a wrong one."""
 

@@ -57,6 +57,12 @@ class Robot:
                 "The robot's pose is not known: no tf map → base_link and no /amcl_pose yet. "
                 "Is localization (AMCL) running and the robot's initial pose set?"
             )
+        age = self.pose.age(reading)
+        if age > self.pose.max_age:
+            raise NoPose(
+                "The robot's last pose is {:.1f} s old (from {}), older than navigation.pose_max_age "
+                "({:g} s): is localization still running?".format(age, reading.source, self.pose.max_age)
+            )
         return reading.pose
 
     def status(self):

@@ -210,6 +210,27 @@ def test_put_from_current_records_the_pose_now(client, robot, robot_config):
     assert (wp["x"], wp["y"]) == (-2.0, 0.25) and math.isclose(wp["yaw"], -1.0)
 
 
+def test_put_from_current_refuses_a_stale_pose(client, robot, robot_config):
+    import rospy
+    from geometry_msgs.msg import PoseWithCovarianceStamped
+
+    pub = rospy.Publisher(robot_config.navigation.amcl_pose_topic, PoseWithCovarianceStamped, queue_size=1, latch=True)
+    msg = PoseWithCovarianceStamped()
+    msg.header.frame_id = robot_config.ros.frames.map
+    msg.header.stamp = rospy.Time.now() - rospy.Duration(10.0)  # localization stopped 10 s ago
+    msg.pose.pose.position.x, msg.pose.pose.orientation.w = 3.5, 1.0
+    pub.publish(msg)
+    try:
+        wait_for(lambda: robot.pose.current(), message="the AMCL pose")
+        r = client.put("/waypoints/here", json={"from": "current"})
+        assert r.status_code == 409 and r.get_json()["error"] == "no_pose"
+        assert "s old" in r.get_json()["message"] and "pose_max_age" in r.get_json()["message"]
+        assert open(robot_config.waypoints.file).read() == SEED
+        assert client.get("/status").get_json()["pose"]["age"] >= 10  # still shown, with its age
+    finally:
+        pub.unregister()
+
+
 def test_put_from_current_without_a_pose_is_409(client, robot_config):
     r = client.put("/waypoints/here", json={"from": "current"})
     assert r.status_code == 409 and r.get_json()["error"] == "no_pose"

@@ -28,8 +28,9 @@ class PoseReading:
 class PoseTracker:
     """The robot's latest pose in the map frame, from tf or AMCL."""
 
-    def __init__(self, frames, amcl_pose_topic, node):
+    def __init__(self, frames, amcl_pose_topic, node, max_age=2.0):
         self._frames = frames
+        self.max_age = max_age
         self._amcl_topic = amcl_pose_topic
         self._lock = threading.Lock()
         self._amcl = None
@@ -52,6 +53,10 @@ class PoseTracker:
     def current(self):
         """The latest :class:`PoseReading`, or None when neither tf nor AMCL gave one."""
         return self._from_tf() or self._amcl
+
+    def age(self, reading):
+        """Seconds since ``reading`` was measured."""
+        return max(0.0, rospy.get_time() - reading.stamp)
 
     def _from_tf(self):
         if self._buffer is None:

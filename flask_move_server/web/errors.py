@@ -22,7 +22,6 @@ STATUS = (
     (errors.BadRequest, 400),
     (errors.NavigationFailed, 409),
     (errors.NoPose, 409),
-    (errors.Conflict, 409),
     (errors.WaypointFileError, 409),
     (errors.RosUnavailable, 503),
     (errors.NavigationUnavailable, 503),
