@@ -308,6 +308,12 @@ def test_bad_input_is_a_json_4xx_and_changes_nothing(client, robot_config, metho
     assert client.get("/status").get_json()["navigation"]["state"] == "idle"
 
 
+def test_a_wrong_method_names_the_right_one(client):
+    r = client.get("/goto")
+    assert r.status_code == 405 and r.get_json()["message"] == "/goto takes POST, not GET."
+    assert "POST" in r.headers["Allow"]
+
+
 def test_any_content_type_is_read_as_json(client, ready_robot):
     for ctype in (None, "application/x-www-form-urlencoded", "text/plain"):
         r = client.post("/goto", data='{"name":"dock"}', content_type=ctype)

@@ -4,7 +4,7 @@ Shared objects live in ``app.extensions["flask_move_server"]``, never in a
 module global, so several apps (tests) can live in one process.
 """
 
-from flask import Flask, send_from_directory
+from flask import Blueprint, Flask, send_from_directory
 
 from flask_move_server.web import auth, errors
 from flask_move_server.web.routes import api
@@ -25,8 +25,6 @@ def create_app(config, robot, store, token=None):
 
 
 def _add_page(app):
-    from flask import Blueprint
-
     page = Blueprint("page", __name__)
 
     @page.route("/", methods=["GET"])

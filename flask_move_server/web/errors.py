@@ -8,7 +8,7 @@ Never an HTML error page.
 
 import logging
 
-from flask import jsonify
+from flask import jsonify, request
 from werkzeug.exceptions import HTTPException
 
 from flask_move_server import errors
@@ -70,6 +70,9 @@ def init_app(app):
     @app.errorhandler(HTTPException)
     def _http(exc):
         code, message = _HTTP_CODES.get(exc.code, (exc.name.lower().replace(" ", "_"), exc.description))
+        allowed = sorted(set(getattr(exc, "valid_methods", None) or ()) - {"HEAD", "OPTIONS"})
+        if exc.code == 405 and allowed:
+            message = "{} takes {}, not {}.".format(request.path, " or ".join(allowed), request.method)
         response = error_response(exc.code, code, message)
         if exc.code == 405 and exc.valid_methods:
             response.headers["Allow"] = ", ".join(exc.valid_methods)
