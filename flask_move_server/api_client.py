@@ -7,6 +7,7 @@ command-line tools print one line and exit, never a traceback.
 """
 
 import json
+import socket
 from urllib.parse import quote, urlsplit, urlunsplit
 
 import requests
@@ -165,15 +166,25 @@ def _json_of(response):
 _UNRESOLVED = "its name does not resolve"
 
 
-_UNRESOLVED_TEXTS = ("resolve", "name resolution", "Name or service not known", "nodename nor servname")
+def _causes(exc):
+    """``exc`` and everything it wraps (requests → urllib3 → socket), each once."""
+    seen, stack = set(), [exc]
+    while stack:
+        e = stack.pop()
+        if e is None or id(e) in seen:
+            continue
+        seen.add(id(e))
+        yield e
+        stack += [e.__cause__, e.__context__, getattr(e, "reason", None)]
+        stack += [a for a in getattr(e, "args", ()) if isinstance(a, BaseException)]
 
 
 def _connection_reason(exc):
-    text = str(exc)
-    # urllib3 2 says "Failed to resolve 'robot.local'"; urllib3 1.26 (Debian's) only
-    # "[Errno -3] Temporary failure in name resolution".
-    if any(t in text for t in _UNRESOLVED_TEXTS):
+    # The name did not resolve: a socket.gaierror somewhere in the chain, whatever words
+    # urllib3 (2: NameResolutionError, 1.26: NewConnectionError) wraps it in.
+    if any(isinstance(e, socket.gaierror) for e in _causes(exc)):
         return _UNRESOLVED
+    text = str(exc)
     if "refused" in text.lower():
         return "connection refused"
     if "timed out" in text.lower():
