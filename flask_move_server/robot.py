@@ -6,7 +6,7 @@ the rules that span them (teleop cancels a goal, a goal ends teleop, stop ends
 both and zeroes the velocity).
 """
 
-from flask_move_server.errors import NavigationFailed, NoPose
+from flask_move_server.errors import NavigationFailed
 
 
 class Robot:
@@ -50,20 +50,11 @@ class Robot:
         return result
 
     def current_pose(self):
-        """The robot's pose in the map frame now; NoPose when unknown."""
-        reading = self.pose.current()
-        if reading is None:
-            raise NoPose(
-                "The robot's pose is not known: no tf map → base_link and no /amcl_pose yet. "
-                "Is localization (AMCL) running and the robot's initial pose set?"
-            )
-        age = self.pose.age(reading)
-        if age > self.pose.max_age:
-            raise NoPose(
-                "The robot's last pose is {:.1f} s old (from {}), older than navigation.pose_max_age "
-                "({:g} s): is localization still running?".format(age, reading.source, self.pose.max_age)
-            )
-        return reading.pose
+        """The robot's pose in the map frame now; NoPose when unknown or stale."""
+        return self.pose.fresh(
+            "The robot's pose is not known: no tf map → base_link and no /amcl_pose yet. "
+            "Is localization (AMCL) running and the robot's initial pose set?"
+        )
 
     def status(self):
         """Everything ``GET /status`` shows."""

@@ -166,7 +166,15 @@ def test_the_current_pose_from_tf_else_amcl(rig):
     amcl = PoseWithCovarianceStamped()
     amcl.header.frame_id = rig.map
     amcl.pose.pose.position.x, amcl.pose.pose.orientation.w = -3.0, 1.0
-    rig.publish("amcl_pose", PoseWithCovarianceStamped, amcl, lambda: rig.ros._amcl is not None, "the AMCL pose")
+    amcl.header.stamp = rospy.Time.now() - rospy.Duration(30.0)  # AMCL stopped half a minute ago
+    rig.publish("amcl_pose", PoseWithCovarianceStamped, amcl, lambda: rig.ros.pose.current() is not None,
+                "the AMCL pose")
+    rig.session.handle_line("here stale")
+    assert "s old (from amcl_pose)" in rig.said[-1] and rig.file_waypoints() == {}
+
+    amcl.header.stamp = rospy.Time.now()
+    rig.publish("amcl_pose", PoseWithCovarianceStamped, amcl,
+                lambda: rig.ros.pose.age(rig.ros.pose.current()) < 1.0, "the fresh AMCL pose")
     rig.session.handle_line("here dock")
     assert rig.file_waypoints() == {"dock": [-3.0, 0.0, 0.0]}
 

@@ -10,10 +10,11 @@ import queue
 
 import rospy
 import tf2_ros
-from geometry_msgs.msg import PointStamped, PoseStamped, PoseWithCovarianceStamped
+from geometry_msgs.msg import PointStamped, PoseStamped
 
-from flask_move_server.errors import NoPose
+from flask_move_server.config import FramesConfig
 from flask_move_server.geometry import Pose2D, normalize_angle, quaternion_to_yaw
+from flask_move_server.ros.pose import PoseTracker
 
 _TF_ERRORS = (tf2_ros.LookupException, tf2_ros.ConnectivityException, tf2_ros.ExtrapolationException)
 
@@ -33,11 +34,10 @@ class RosSide:
         self.map_frame, self.base_frame = map_frame, base_frame
         self.clicks = queue.Queue()
         self.problems = queue.Queue()  # clicks that could not be placed in the map, as sentences
-        self._amcl = None
-        self._buffer = tf2_ros.Buffer(cache_time=rospy.Duration(10.0))
-        self._listener = tf2_ros.TransformListener(self._buffer)
+        # The server's pose tracker: tf map → base_link, else /amcl_pose, stale poses refused.
+        self.pose = PoseTracker(FramesConfig(map=map_frame, base_link=base_frame), amcl_topic)
+        self._buffer = self.pose.buffer
         self._subs = [
-            rospy.Subscriber(amcl_topic, PoseWithCovarianceStamped, self._on_amcl, queue_size=1),
             rospy.Subscriber(clicked_topic, PointStamped, self._on_point, queue_size=10),
             rospy.Subscriber(goal_topic, PoseStamped, self._on_goal, queue_size=10),
         ]
@@ -46,14 +46,7 @@ class RosSide:
 
     def current_pose(self):
         """The robot's pose in the map frame (tf, else AMCL); NoPose saying why not."""
-        try:
-            t = self._buffer.lookup_transform(self.map_frame, self.base_frame, rospy.Time(0))
-        except _TF_ERRORS:
-            if self._amcl is not None:
-                return self._amcl
-            raise NoPose(self.why_no_pose())
-        r, p = t.transform.rotation, t.transform.translation
-        return Pose2D(p.x, p.y, quaternion_to_yaw(r.x, r.y, r.z, r.w))
+        return self.pose.fresh(self.why_no_pose())
 
     def has_map_frame(self):
         return self._buffer._frameExists(self.map_frame.lstrip("/"))
@@ -67,9 +60,6 @@ class RosSide:
         return ("tf has '{}' but no path to '{}', and no /amcl_pose came: is AMCL localised and the "
                 "base driver publishing odom -> {}?".format(self.map_frame, self.base_frame, self.base_frame))
 
-    def _on_amcl(self, msg):
-        p, o = msg.pose.pose.position, msg.pose.pose.orientation
-        self._amcl = Pose2D(p.x, p.y, quaternion_to_yaw(o.x, o.y, o.z, o.w))
 
     # RViz ---------------------------------------------------------------------------
 
@@ -105,4 +95,4 @@ class RosSide:
         for sub in self._subs:
             sub.unregister()
         self._subs = []
-        self._listener.unregister()
+        self.pose.close()

@@ -7,6 +7,7 @@ import rospy
 import tf2_ros
 from geometry_msgs.msg import PoseWithCovarianceStamped
 
+from flask_move_server.errors import NoPose
 from flask_move_server.geometry import Pose2D, quaternion_to_yaw
 
 
@@ -28,7 +29,8 @@ class PoseReading:
 class PoseTracker:
     """The robot's latest pose in the map frame, from tf or AMCL."""
 
-    def __init__(self, frames, amcl_pose_topic, node, max_age=2.0):
+    def __init__(self, frames, amcl_pose_topic, node=None, max_age=2.0):
+        """``node``: set up once it is ready; None when rospy is initialised already."""
         self._frames = frames
         self.max_age = max_age
         self._amcl_topic = amcl_pose_topic
@@ -36,7 +38,10 @@ class PoseTracker:
         self._amcl = None
         self._buffer = None
         self._subscriptions = []
-        node.when_ready(self._setup)
+        if node is None:
+            self._setup()
+        else:
+            node.when_ready(self._setup)
 
     def _setup(self):
         self._buffer = tf2_ros.Buffer(cache_time=rospy.Duration(10.0))
@@ -57,6 +62,24 @@ class PoseTracker:
     def age(self, reading):
         """Seconds since ``reading`` was measured."""
         return max(0.0, rospy.get_time() - reading.stamp)
+
+    def fresh(self, why_missing):
+        """The pose now, for recording it; NoPose (``why_missing``, or its age) when unknown or stale."""
+        reading = self.current()
+        if reading is None:
+            raise NoPose(why_missing)
+        age = self.age(reading)
+        if age > self.max_age:
+            raise NoPose(
+                "The robot's last pose is {:.1f} s old (from {}), older than navigation.pose_max_age "
+                "({:g} s): is localization still running?".format(age, reading.source, self.max_age)
+            )
+        return reading.pose
+
+    @property
+    def buffer(self):
+        """The tf buffer (None until set up), for other lookups in the same tree."""
+        return self._buffer
 
     def _from_tf(self):
         if self._buffer is None:
