@@ -400,6 +400,17 @@ def test_health_and_the_page_need_no_token(token_client):
     assert token_client.get("/").status_code == 200
 
 
+def test_a_configured_token_with_a_trailing_newline_is_the_token_over_http(robot_config, robot, store):
+    from flask_move_server.web import create_app
+
+    robot_config.server.token = "s3cret\n"  # as pasted from a file: the newline is not the secret
+    app = create_app(robot_config, robot, store, token=robot_config.resolved_token())
+    with serve(app) as url:
+        assert requests.get(url + "/waypoints", headers={"Authorization": "Bearer s3cret"}, timeout=10).ok
+        r = requests.get(url + "/waypoints", headers={"Authorization": "Bearer s3cre"}, timeout=10)
+        assert r.status_code == 401
+
+
 # -- through a real waitress server --------------------------------------------------------------
 
 
