@@ -13,6 +13,7 @@ import difflib
 import logging
 import math
 import os
+import re
 import stat
 import typing
 from dataclasses import dataclass, field
@@ -57,6 +58,13 @@ def _instance_name(value):
     return "must be 1 to 63 bytes of text"
 
 
+def _host_names(value):
+    for name in value:
+        if name != "*" and not re.fullmatch(r"\.?[A-Za-z0-9_-]+(\.[A-Za-z0-9_-]+)*\.?", name):
+            return "must list host names (robot.lan), domains (.lan) or '*', got {!r}".format(name)
+    return None
+
+
 def _speed_factor(value):
     return None if 0 < value <= 20 else "must be above 0 and at most 20 (simulated seconds per real second)"
 
@@ -81,6 +89,7 @@ class ServerConfig:
     threads: int = _check(_positive, default=6)
     max_body_bytes: int = _check(_positive, default=16384)
     static: bool = True
+    allowed_hosts: List[str] = _check(_host_names, default_factory=list)
 
 
 @dataclass
