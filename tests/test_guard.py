@@ -31,7 +31,8 @@ def _machine():
 
 
 @pytest.mark.parametrize("host", [
-    "127.0.0.1:5000", "[::1]:5000", "192.168.1.20", "localhost:5000", "robot.local:5000", "ROBOT.local",
+    "127.0.0.1:5000", "[::1]:5000", "192.168.1.20", "[fe80::1%eth0]:5000", "localhost:5000", "robot.local:5000",
+    "ROBOT.local",
     "robot.local.", "robot-2.local:5000", "robot.lan", "kitchen.home", "home", "MACHINE", "MACHINE.local:5000",
 ])
 def test_the_robots_own_names_and_addresses_are_answered(guarded, host):
@@ -56,7 +57,7 @@ def test_any_other_name_is_refused_saying_how_to_allow_it(guarded, robot_config,
 
 @pytest.mark.parametrize("origin", [
     "http://evil.example", "https://evil.example", "null", "http://robot.local:8080", "http://robot.local",
-    "http://robot.local:5000.evil.example", "file://", "http://127.0.0.1:5000",
+    "http://robot.local:5000.evil.example", "file://", "http://127.0.0.1:5000", "http://[", "robot.local:5000",
 ])
 def test_a_text_plain_post_from_another_page_moves_nothing(guarded, robot_config, origin):
     client = guarded.test_client()

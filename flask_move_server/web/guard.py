@@ -66,7 +66,7 @@ def host_name(host):
 
 def _is_address(name):
     try:
-        ipaddress.ip_address(name)
+        ipaddress.ip_address(name.partition("%")[0])  # fe80::1%eth0: a link-local address and its zone
     except ValueError:
         return False
     return True
@@ -84,7 +84,7 @@ def init_app(app, config):
                 "This robot does not know the name {} it was called by (the Host header), so the request is "
                 "refused: a web page can give its own name the robot's address. If the robot has that name on "
                 "your network, add it to server.allowed_hosts in its config.".format(_shown(host_name(host))))
-        problem = cross_site(host)
+        problem = cross_site(request.headers)
         if problem:
             raise ForbiddenOrigin(
                 "Requests from other web pages are refused ({}), so a page you visit cannot drive the robot. "
@@ -92,18 +92,24 @@ def init_app(app, config):
         return None
 
 
-def cross_site(host):
-    """Why this request comes from another site's page (a short phrase), or None."""
-    origin = request.headers.get("Origin")
-    if origin is not None:
-        parts = urlsplit(origin.strip())
-        same = parts.scheme in ("http", "https") and host is not None and parts.netloc.lower() == host.lower()
-        if not same:
-            return "Origin: {}{}".format(_shown(origin), ", a sandboxed page or a file" if origin == "null" else "")
-    fetch_site = request.headers.get("Sec-Fetch-Site", "").lower()
-    if fetch_site == "cross-site" and request.headers.get("Sec-Fetch-Mode", "").lower() != "navigate":
+def cross_site(headers):
+    """Why a request with these headers comes from another site's page (a short phrase), or None."""
+    origin = headers.get("Origin")
+    if origin is not None and not _same_origin(origin, headers.get("Host")):
+        return "Origin: {}{}".format(_shown(origin), ", a sandboxed page or a file" if origin == "null" else "")
+    fetch_site = headers.get("Sec-Fetch-Site", "").lower()
+    if fetch_site == "cross-site" and headers.get("Sec-Fetch-Mode", "").lower() != "navigate":
         return "Sec-Fetch-Site: cross-site"
     return None
+
+
+def _same_origin(origin, host):
+    """True when ``origin`` is ``http(s)://<host>``: the page making the request is the robot's own."""
+    try:
+        parts = urlsplit(origin.strip())
+    except ValueError:  # e.g. "http://[" : no origin a browser sends
+        return False
+    return parts.scheme in ("http", "https") and host is not None and parts.netloc.lower() == host.strip().lower()
 
 
 def _shown(text):
