@@ -10,8 +10,11 @@ file, the key and the reason. Pure: imports neither rospy nor Flask.
 
 import dataclasses
 import difflib
+import logging
 import math
 import os
+import re
+import stat
 import typing
 from dataclasses import dataclass, field
 from typing import Any, Dict, List, Literal, Optional, get_args, get_origin
@@ -19,6 +22,8 @@ from typing import Any, Dict, List, Literal, Optional, get_args, get_origin
 import yaml
 
 from flask_move_server.errors import ConfigError
+
+log = logging.getLogger(__name__)
 
 TOKEN_ENV = "FLASK_MOVE_SERVER_TOKEN"
 LOOPBACK_HOSTS = ("127.0.0.1", "localhost", "::1")
@@ -53,6 +58,13 @@ def _instance_name(value):
     return "must be 1 to 63 bytes of text"
 
 
+def _host_names(value):
+    for name in value:
+        if name != "*" and not re.fullmatch(r"\.?[A-Za-z0-9_-]+(\.[A-Za-z0-9_-]+)*\.?", name):
+            return "must list host names (robot.lan), domains (.lan) or '*', got {!r}".format(name)
+    return None
+
+
 def _speed_factor(value):
     return None if 0 < value <= 20 else "must be above 0 and at most 20 (simulated seconds per real second)"
 
@@ -77,6 +89,7 @@ class ServerConfig:
     threads: int = _check(_positive, default=6)
     max_body_bytes: int = _check(_positive, default=16384)
     static: bool = True
+    allowed_hosts: List[str] = _check(_host_names, default_factory=list)
 
 
 @dataclass
@@ -247,14 +260,26 @@ class Config:
     source: str = field(default="(defaults)", metadata={"internal": True})
 
     def resolved_token(self):
-        """The bearer token in force: env var, then ``token``, then ``token_file``."""
-        env = os.environ.get(TOKEN_ENV, "").strip()
-        if env:
-            return env
-        if self.server.token:
-            return self.server.token
+        """The bearer token in force: env var, then ``token``, then ``token_file``; None if none.
+
+        Every source is stripped the same way (a file's newline or a pasted space is not part of
+        the secret) and checked: empty or not printable ASCII is a ConfigError (see check_token).
+        """
+        found = self.token_source()
+        if found is None:
+            return None
+        source, key, text = found
+        return check_token(text.strip(), source, key)
+
+    def token_source(self):
+        """(source, key, raw text) of the token in force, or None; an empty env var counts as unset."""
+        env = os.environ.get(TOKEN_ENV, "")
+        if env.strip():
+            return "environment", TOKEN_ENV, env
+        if self.server.token is not None:
+            return self.source, "server.token", self.server.token
         if self.server.token_file:
-            return _read_token_file(self.server.token_file, self.source)
+            return self.source, "server.token_file", _read_token_file(self.server.token_file, self.source)
         return None
 
     def serves_only_loopback(self):
@@ -265,12 +290,40 @@ class Config:
 def _read_token_file(path, source):
     try:
         with open(path, encoding="utf-8") as f:
-            token = f.read().strip()
+            return f.read()
     except OSError as exc:
         raise ConfigError(source, "server.token_file", "cannot read {}: {}".format(path, exc.strerror))
+    except UnicodeDecodeError:
+        raise ConfigError(source, "server.token_file", "{} is not text (UTF-8)".format(path))
+
+
+def check_token(token, source, key):
+    """``token`` if it can be a bearer token every client sends alike, else ConfigError.
+
+    Non-ASCII is refused rather than half-supported: curl sends a header's bytes as typed (UTF-8),
+    browsers and Python's http.client (requests, robotctl) send Latin-1, so such a token would
+    work from some clients and not from others.
+    """
     if not token:
-        raise ConfigError(source, "server.token_file", "{} is empty".format(path))
+        raise ConfigError(source, key, "the token is empty; set one, or remove the setting")
+    bad = [i for i, c in enumerate(token) if not " " <= c <= "~"]
+    if bad:
+        raise ConfigError(source, key, "the token has a character that is not printable ASCII (at position {}); "
+                          "HTTP clients would send it differently. Use letters, digits and punctuation, e.g. "
+                          "python3 -c 'import secrets; print(secrets.token_urlsafe(24))'".format(bad[0] + 1))
     return token
+
+
+def warn_if_token_file_shared(config):
+    """Log a warning when the token in force comes from a file other users can read or change."""
+    found = config.token_source()
+    if found is None or found[1] != "server.token_file":
+        return
+    path = config.server.token_file
+    mode = stat.S_IMODE(os.stat(path).st_mode)
+    if mode & 0o077:
+        log.warning("the token file %s can be read by other users of this machine (mode %04o): "
+                    "run chmod 600 %s", path, mode, path)
 
 
 def load(path=None):
@@ -382,8 +435,11 @@ def _kind(value):
 
 
 def check_serving_policy(config):
-    """Refuse to serve a non-loopback address without a token (unless insecure)."""
-    if config.serves_only_loopback() or config.server.insecure or config.resolved_token():
+    """At start-up: the token is valid and private; no network address is served without one (unless insecure)."""
+    token = config.resolved_token()
+    if token:
+        warn_if_token_file_shared(config)
+    if token or config.serves_only_loopback() or config.server.insecure:
         return
     raise ConfigError(
         config.source,

@@ -74,6 +74,18 @@ class Unauthorized(MoveServerError, PermissionError):
     code = "unauthorized"
 
 
+class UnknownHost(MoveServerError, PermissionError):
+    """The request calls the robot by a name it does not have (a web page's DNS rebinding, say)."""
+
+    code = "unknown_host"
+
+
+class ForbiddenOrigin(MoveServerError, PermissionError):
+    """The request comes from a web page of another site, which must not drive the robot."""
+
+    code = "forbidden_origin"
+
+
 class RosUnavailable(MoveServerError, ConnectionError):
     """The ROS master is not reachable (yet), so nothing can be sent."""
 

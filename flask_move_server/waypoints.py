@@ -32,7 +32,12 @@ from flask_move_server.errors import BadWaypoint, UnknownWaypoint, WaypointFileE
 
 log = logging.getLogger(__name__)
 
-NAME_RULE = "1 to 64 letters, digits, '_', '-', '.' or spaces, not starting or ending with a space, without '..'"
+NAME_RULE = ("1 to 64 letters, digits, '_', '-', '.' or spaces, not starting or ending with a space, "
+             "without '..' and not '.' alone")
+# Bounds far beyond any building, but small enough that every formula on a pose stays finite and
+# exact (1e308 overflows distances): x, y in metres, yaw in radians.
+POSITION_LIMIT = 1e6
+YAW_LIMIT = 1e3
 _NAME_RE = re.compile(r"[A-Za-z0-9_. -]{1,64}")
 _PLAIN_KEY_RE = re.compile(r"[A-Za-z_][A-Za-z0-9_-]*")
 
@@ -54,18 +59,24 @@ def check_name(name):
     """Return ``name`` if it is a valid waypoint name, else raise BadWaypoint."""
     if not isinstance(name, str):
         raise BadWaypoint("A waypoint name must be text, got {!r}.".format(name))
-    if not _NAME_RE.fullmatch(name) or name != name.strip(" ") or ".." in name:
+    # "." and ".." are path segments: clients drop them from a URL, so they could not be deleted.
+    if not _NAME_RE.fullmatch(name) or name != name.strip(" ") or ".." in name or name == ".":
         raise BadWaypoint("Invalid waypoint name {}: use {}.".format(json.dumps(name), NAME_RULE))
     return name
 
 
-def check_coordinate(label, value):
-    """Return ``value`` as a float if it is a finite number, else raise BadWaypoint."""
+def check_coordinate(label, value, limit=POSITION_LIMIT):
+    """Return ``value`` as a float if it is a finite number within ±``limit``, else raise BadWaypoint."""
     if isinstance(value, bool) or not isinstance(value, (int, float)):
         raise BadWaypoint("{} must be a number, got {}.".format(label, json.dumps(value, default=repr)))
-    value = float(value)
+    try:
+        value = float(value)
+    except OverflowError:  # an int too large for a float
+        value = math.inf if value > 0 else -math.inf
     if not math.isfinite(value):
         raise BadWaypoint("{} must be a finite number, got {}.".format(label, value))
+    if abs(value) > limit:
+        raise BadWaypoint("{} must be between {:.0f} and {:.0f}, got {:g}.".format(label, -limit, limit, value))
     return value
 
 
@@ -76,7 +87,7 @@ def make_waypoint(name, x, y, yaw):
         name,
         check_coordinate("x", x),
         check_coordinate("y", y),
-        check_coordinate("yaw", yaw),
+        check_coordinate("yaw", yaw, YAW_LIMIT),
     )
 
 

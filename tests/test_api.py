@@ -1,5 +1,6 @@
 """The HTTP API against the real robot: rospy, actionlib, tf2, a scripted move_base."""
 
+import http.client
 import json
 import math
 
@@ -263,7 +264,13 @@ BAD = [
     ("post", "/goto", b"[" * 5000 + b"]" * 5000, 400),
     ("post", "/goto", b'{"a":' * 2000 + b"1" + b"}" * 2000, 400),
     ("post", "/goto", b'{"name": "' + b"x" * 20000 + b'"}', 413),
+    ("post", "/goto", b'{"x": 1e308, "y": 0}', 400),
+    ("post", "/goto", b'{"x": 0, "y": -1000001}', 400),
+    ("post", "/goto", b'{"x": 0, "y": 0, "yaw": 1e300}', 400),
+    ("post", "/goto", b'{"x": 1' + b"0" * 400 + b', "y": 0}', 400),
+    ("post", "/goto", b'{"name": "dock", "name": "kitchen"}', 400),
     ("post", "/teleop", b'{"linear": "fast"}', 400),
+    ("post", "/teleop", b'{"linear": 0.1, "linear": 5}', 400),
     ("post", "/teleop", b'{"linear": NaN}', 400),
     ("post", "/teleop", b'{"speed": 1}', 400),
     ("post", "/stop", b"{oops", 400),
@@ -271,6 +278,9 @@ BAD = [
     ("put", "/waypoints/ok", b'{"x": 1, "y": 2, "yaw": NaN}', 400),
     ("put", "/waypoints/ok", b'{"x": 1, "y": 2, "yaw": -Infinity}', 400),
     ("put", "/waypoints/ok", b'{"x": [1], "y": 2, "yaw": 0}', 400),
+    ("put", "/waypoints/ok", b'{"x": 1e308, "y": 2, "yaw": 0}', 400),
+    ("put", "/waypoints/ok", b'{"x": 1, "y": 2, "yaw": -1001}', 400),
+    ("put", "/waypoints/ok", b'{"x": 1, "y": 2, "yaw": 0, "x": 5}', 400),
     ("put", "/waypoints/ok", b'{"from": "yesterday"}', 400),
     ("put", "/waypoints/ok", b'{"from": "current", "x": 1}', 400),
     ("put", "/waypoints/a%2Fb", b'{"x": 1, "y": 2, "yaw": 0}', 400),
@@ -279,6 +289,10 @@ BAD = [
     ("put", "/waypoints/a..b", b'{"x": 1, "y": 2, "yaw": 0}', 400),
     ("put", "/waypoints/tab%09", b'{"x": 1, "y": 2, "yaw": 0}', 400),
     ("put", "/waypoints/nul%00", b'{"x": 1, "y": 2, "yaw": 0}', 400),
+    ("put", "/waypoints/new%0Aline", b'{"x": 1, "y": 2, "yaw": 0}', 400),
+    ("put", "/waypoints/.", b'{"x": 1, "y": 2, "yaw": 0}', 400),
+    ("get", "/waypoints/new%0Aline", None, 400),
+    ("delete", "/waypoints/line%0A", None, 400),
     ("put", "/waypoints/" + "x" * 300, b'{"x": 1, "y": 2, "yaw": 0}', 400),
     ("put", "/waypoints/%20lead", b'{"x": 1, "y": 2, "yaw": 0}', 400),
     ("put", "/waypoints/ok", b"[" * 5000 + b"]" * 5000, 400),
@@ -306,6 +320,34 @@ def test_bad_input_is_a_json_4xx_and_changes_nothing(client, robot_config, metho
     assert err["status"] == "error" and err["error"] and len(err["message"]) > 10
     assert open(robot_config.waypoints.file).read() == SEED
     assert client.get("/status").get_json()["navigation"]["state"] == "idle"
+
+
+def test_a_control_character_in_a_url_name_is_a_bad_name_not_a_missing_endpoint(client):
+    r = client.put("/waypoints/kitchen%0Adoor", json={"x": 1, "y": 2, "yaw": 0})
+    assert r.status_code == 400 and r.get_json()["error"] == "bad_waypoint"
+    assert "kitchen\\ndoor" in r.get_json()["message"] and "letters, digits" in r.get_json()["message"]
+
+
+def test_dot_is_not_a_name_a_client_could_delete(client):
+    r = client.put("/waypoints/.", json={"x": 1, "y": 2, "yaw": 0})
+    assert r.status_code == 400 and "not '.' alone" in r.get_json()["message"]
+    assert client.post("/goto", json={"name": "."}).status_code == 400
+
+
+def test_a_field_given_twice_is_refused_naming_it(client):
+    r = client.put("/waypoints/ok", data=b'{"x": 1, "y": 2, "yaw": 0, "y": 2000}')
+    assert r.status_code == 400 and r.get_json()["error"] == "bad_request"
+    assert r.get_json()["message"] == 'The field "y" appears twice in the body; send each field once.'
+
+
+def test_coordinates_beyond_the_bound_are_refused_saying_the_bound(client):
+    r = client.post("/goto", json={"x": 1e308, "y": 0})
+    assert r.status_code == 400
+    assert r.get_json()["message"] == "x must be between -1000000 and 1000000, got 1e+308."
+    r = client.put("/waypoints/far", json={"x": 0, "y": 0, "yaw": 5000})
+    assert r.status_code == 400 and "between -1000 and 1000" in r.get_json()["message"]
+    r = client.put("/waypoints/edge", json={"x": 1e6, "y": -1e6, "yaw": -1000})
+    assert r.status_code == 201
 
 
 def test_a_wrong_method_names_the_right_one(client):
@@ -358,6 +400,17 @@ def test_health_and_the_page_need_no_token(token_client):
     assert token_client.get("/").status_code == 200
 
 
+def test_a_configured_token_with_a_trailing_newline_is_the_token_over_http(robot_config, robot, store):
+    from flask_move_server.web import create_app
+
+    robot_config.server.token = "s3cret\n"  # as pasted from a file: the newline is not the secret
+    app = create_app(robot_config, robot, store, token=robot_config.resolved_token())
+    with serve(app) as url:
+        assert requests.get(url + "/waypoints", headers={"Authorization": "Bearer s3cret"}, timeout=10).ok
+        r = requests.get(url + "/waypoints", headers={"Authorization": "Bearer s3cre"}, timeout=10)
+        assert r.status_code == 401
+
+
 # -- through a real waitress server --------------------------------------------------------------
 
 
@@ -371,3 +424,14 @@ def test_over_real_http(app, ready_robot, move_base):
         assert r.status_code == 404 and r.headers["Content-Type"] == "application/json"
         assert json.loads(r.text)["status"] == "error"
         assert requests.get(url + "/health", timeout=10).json()["move_base"] == "ready"
+
+
+def test_empty_answers_carry_no_html_type(app):
+    with serve(app) as url:
+        for method, path in (("OPTIONS", "/goto"), ("OPTIONS", "/waypoints/dock"), ("DELETE", "/waypoints/dock")):
+            conn = http.client.HTTPConnection(url[len("http://"):], timeout=10)
+            conn.request(method, path)
+            r = conn.getresponse()
+            assert r.status in (200, 204) and r.read() == b""
+            assert r.getheader("Content-Type") is None, (method, path, r.getheaders())
+            conn.close()

@@ -137,3 +137,71 @@ def test_sim_serves_this_machine_only_even_with_a_config_file(tmp_path):
     assert loaded.server.host == "127.0.0.1" and loaded.drive.backend == "sim"
     loaded = cli.load_config(cli.parse_args(["--config", path, "--sim", "--host", "0.0.0.0", "--insecure"]), [])
     assert loaded.server.host == "0.0.0.0"
+
+
+# -- the token: one rule for every source --------------------------------------------------------
+
+
+def _token_sources(tmp_path, text):
+    """A config per source, each holding ``text`` as its token."""
+    token_file = tmp_path / "token"
+    token_file.write_text(text)
+    token_file.chmod(0o600)
+    in_file = config.load(_write(tmp_path, "server:\n  token_file: token\n"))
+    in_config = config.Config()
+    in_config.server.token = text
+    return {"server.token_file": in_file, "server.token": in_config, config.TOKEN_ENV: config.Config()}
+
+
+@pytest.mark.parametrize("key", ["server.token_file", "server.token", config.TOKEN_ENV])
+def test_every_token_source_strips_whitespace_the_same_way(tmp_path, monkeypatch, key):
+    monkeypatch.delenv(config.TOKEN_ENV, raising=False)
+    cfg = _token_sources(tmp_path, "  s3cret \t\n")[key]
+    if key == config.TOKEN_ENV:
+        monkeypatch.setenv(config.TOKEN_ENV, "  s3cret \t\n")
+    assert cfg.resolved_token() == "s3cret"
+
+
+@pytest.mark.parametrize("key", ["server.token_file", "server.token"])
+def test_a_token_that_is_only_whitespace_is_a_config_error(tmp_path, monkeypatch, key):
+    monkeypatch.delenv(config.TOKEN_ENV, raising=False)
+    cfg = _token_sources(tmp_path, " \n")[key]
+    with pytest.raises(ConfigError) as err:
+        config.check_serving_policy(cfg)
+    assert err.value.key == key and "empty" in err.value.reason
+
+
+@pytest.mark.parametrize("key", ["server.token_file", "server.token", config.TOKEN_ENV])
+def test_a_non_ascii_token_is_refused_without_showing_it(tmp_path, monkeypatch, key):
+    monkeypatch.delenv(config.TOKEN_ENV, raising=False)
+    cfg = _token_sources(tmp_path, "grüße-ü-token")[key]
+    if key == config.TOKEN_ENV:
+        monkeypatch.setenv(config.TOKEN_ENV, "grüße-ü-token")
+    cfg.server.host = "127.0.0.1"  # refused at start-up even when serving this machine only
+    with pytest.raises(ConfigError) as err:
+        config.check_serving_policy(cfg)
+    assert err.value.key == key and "not printable ASCII (at position 3)" in err.value.reason
+    assert "grüße" not in str(err.value) and "secrets.token_urlsafe" in str(err.value)
+
+
+def test_the_server_refuses_a_non_ascii_token_at_start_up():
+    proc = run_cli("--host", "127.0.0.1", "--port", "0", env={config.TOKEN_ENV: "grüße-ü-token"})
+    _, err = proc.communicate(timeout=30)
+    assert proc.returncode == 2
+    assert "FLASK_MOVE_SERVER_TOKEN: the token has a character that is not printable ASCII" in err
+    assert "grüße" not in err and "Traceback" not in err
+
+
+def test_a_token_file_others_can_read_is_warned_about(tmp_path, monkeypatch, caplog):
+    monkeypatch.delenv(config.TOKEN_ENV, raising=False)
+    cfg = _token_sources(tmp_path, "s3cret\n")["server.token_file"]
+    token_file = tmp_path / "token"
+    with caplog.at_level("WARNING", logger="flask_move_server"):
+        config.check_serving_policy(cfg)
+    assert not caplog.records
+    token_file.chmod(0o644)
+    with caplog.at_level("WARNING", logger="flask_move_server"):
+        config.check_serving_policy(cfg)
+    (record,) = caplog.records
+    assert str(token_file) in record.getMessage() and "chmod 600" in record.getMessage()
+    assert "0644" in record.getMessage()

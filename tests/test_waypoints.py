@@ -72,7 +72,7 @@ def test_unknown_name_suggests_close_names(seed_file):
 
 
 @pytest.mark.parametrize("name", [
-    "", "a/b", "..", "a..b", "../etc", "tab\there", "nl\n", "nul\x00", "bell\x07", " lead", "trail ",
+    "", "a/b", ".", "..", "a..b", "../etc", "tab\there", "nl\n", "nul\x00", "bell\x07", " lead", "trail ",
     "x" * 65, "x" * 300, "ünïcode", "semi;colon", 42, None,
 ])
 def test_invalid_names_are_refused_and_change_nothing(seed_file, name):
@@ -83,16 +83,25 @@ def test_invalid_names_are_refused_and_change_nothing(seed_file, name):
     assert seed_file.read_bytes() == before
 
 
-@pytest.mark.parametrize("value", [float("nan"), float("inf"), -float("inf"), "1.0", None, True, [1]])
+@pytest.mark.parametrize("value", [float("nan"), float("inf"), -float("inf"), "1.0", None, True, [1],
+                                   1e308, -1000000.5, pytest.param(10 ** 400, id="int-beyond-float")])
 def test_invalid_coordinates_are_refused(value):
     with pytest.raises(BadWaypoint):
         make_waypoint("ok", value, 0, 0)
+
+
+def test_coordinates_are_bounded_a_yaw_more_tightly():
+    assert make_waypoint("edge", 1e6, -1e6, 1e3) == Waypoint("edge", 1e6, -1e6, 1e3)
+    with pytest.raises(BadWaypoint, match="yaw must be between -1000 and 1000"):
+        make_waypoint("ok", 0, 0, 1001)
 
 
 @pytest.mark.parametrize("text,problem", [
     ("waypoints: [1, 2]\n", "must map names"),
     ("waypoints:\n  a: [1, 2]\n", "expected [x, y, yaw]"),
     ("waypoints:\n  a: [1, 2, .nan]\n", "finite"),
+    ("waypoints:\n  a: [1.0e+308, 2, 3]\n", "x must be between -1000000 and 1000000"),
+    ("waypoints:\n  '.': [1, 2, 3]\n", "Invalid waypoint name"),
     ("waypoints:\n  a: [1, 2, 3]\n  a: [4, 5, 6]\n", "appears twice"),
     ("waypoints:\n  'a/b': [1, 2, 3]\n", "Invalid waypoint name"),
     ("kitchen: [1, 2, 3]\n", "must hold one mapping"),
@@ -109,11 +118,12 @@ def test_a_broken_file_is_reported_with_the_reason(tmp_path, text, problem):
 
 names = st.from_regex(r"[A-Za-z0-9_-][A-Za-z0-9_. -]{0,62}[A-Za-z0-9_-]", fullmatch=True).filter(
     lambda n: ".." not in n)
-coords = st.floats(allow_nan=False, allow_infinity=False, width=64)
+coords = st.floats(min_value=-wpmod.POSITION_LIMIT, max_value=wpmod.POSITION_LIMIT, width=64)
+yaws = st.floats(min_value=-wpmod.YAW_LIMIT, max_value=wpmod.YAW_LIMIT, width=64)
 
 
 @settings(max_examples=60, deadline=None)
-@given(st.lists(st.tuples(names, coords, coords, coords), max_size=6, unique_by=lambda t: t[0]))
+@given(st.lists(st.tuples(names, coords, coords, yaws), max_size=6, unique_by=lambda t: t[0]))
 def test_any_valid_waypoints_survive_a_save_and_load(tmp_path_factory, entries):
     path = tmp_path_factory.mktemp("rt") / "w.yaml"
     store = WaypointStore(path)
@@ -126,8 +136,8 @@ def test_any_valid_waypoints_survive_a_save_and_load(tmp_path_factory, entries):
 def test_numbers_yaml_would_read_as_text_are_written_as_floats(tmp_path):
     path = tmp_path / "w.yaml"
     store = WaypointStore(path)
-    store.put(make_waypoint("tiny", 1e-05, -2e20, 1e16))
-    assert WaypointStore(path).get("tiny") == Waypoint("tiny", 1e-05, -2e20, 1e16)
+    store.put(make_waypoint("tiny", 1e-05, -2e-20, 1e-16))  # within the bounds
+    assert WaypointStore(path).get("tiny") == Waypoint("tiny", 1e-05, -2e-20, 1e-16)
 
 
 def test_names_that_yaml_would_misread_are_quoted(tmp_path):

@@ -4,19 +4,32 @@ Shared objects live in ``app.extensions["flask_move_server"]``, never in a
 module global, so several apps (tests) can live in one process.
 """
 
-from flask import Blueprint, Flask, send_from_directory
+from flask import Blueprint, Flask, Response, send_from_directory
 
-from flask_move_server.web import auth, errors
-from flask_move_server.web.routes import api
+from flask_move_server.web import auth, errors, guard
+from flask_move_server.web.routes import WaypointNameConverter, api
+
+
+class UntypedResponse(Response):
+    """A response with no Content-Type unless it sets one.
+
+    Every answer with a body is JSON or a static file and says so; Flask would label the empty
+    ones (204, the automatic ``OPTIONS``) ``text/html``, which they are not.
+    """
+
+    default_mimetype = None
 
 
 def create_app(config, robot, store, token=None):
     """Build the WSGI app serving ``robot`` and the waypoints in ``store``."""
     app = Flask(__name__, static_folder="static", static_url_path="/static")
+    app.response_class = UntypedResponse
+    app.url_map.converters["waypoint"] = WaypointNameConverter
     app.config["MAX_CONTENT_LENGTH"] = config.server.max_body_bytes
     app.json.sort_keys = False
     app.extensions["flask_move_server"] = {"config": config, "robot": robot, "store": store}
     errors.init_app(app)
+    guard.init_app(app, config)  # before auth: it protects robots without a token too
     auth.init_app(app, token)
     app.register_blueprint(api)
     if config.server.static:

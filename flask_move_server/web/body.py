@@ -12,6 +12,17 @@ def _no_constants(name):
     raise ValueError("{} is not a number JSON allows".format(name))
 
 
+def _unique_keys(pairs):
+    """A JSON object whose keys are all different: ``{"x": 1, "x": 1e9}`` is ambiguous, not the last one."""
+    data = {}
+    for key, value in pairs:
+        if key in data:
+            raise BadRequest("The field {} appears twice in the body; send each field once.".format(
+                json.dumps(key)[:60]))
+        data[key] = value
+    return data
+
+
 def json_object(allowed, required=True):
     """The request body as a dict with only the ``allowed`` keys; {} if empty and not required."""
     raw = _read_body()
@@ -20,7 +31,9 @@ def json_object(allowed, required=True):
             raise BadRequest("This endpoint needs a JSON object body, e.g. {}.".format(_example(allowed)))
         return {}
     try:
-        data = json.loads(raw.decode("utf-8"), parse_constant=_no_constants)
+        data = json.loads(raw.decode("utf-8"), parse_constant=_no_constants, object_pairs_hook=_unique_keys)
+    except BadRequest:
+        raise
     except RecursionError:
         raise BadRequest("The JSON body is nested too deeply.")
     except (UnicodeDecodeError, ValueError) as exc:
@@ -51,11 +64,18 @@ def number(data, key, minimum=None, maximum=None):
     if key not in data:
         raise BadRequest("Field {!r} is required.".format(key))
     value = data[key]
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not _finite(value):
         raise BadRequest("Field {!r} must be a finite number, got {}.".format(key, json.dumps(value)[:40]))
     if minimum is not None and value < minimum or maximum is not None and value > maximum:
         raise BadRequest("Field {!r} must be between {} and {}, got {}.".format(key, minimum, maximum, value))
     return float(value)
+
+
+def _finite(value):
+    try:
+        return math.isfinite(value)
+    except OverflowError:  # an integer beyond any float, e.g. 1 followed by 400 zeros
+        return False
 
 
 def text(data, key):

@@ -17,6 +17,8 @@ log = logging.getLogger(__name__)
 
 STATUS = (
     (errors.Unauthorized, 401),
+    (errors.UnknownHost, 403),
+    (errors.ForbiddenOrigin, 403),
     (errors.UnknownWaypoint, 404),
     (errors.BodyTooLarge, 413),
     (errors.BadRequest, 400),

@@ -5,10 +5,11 @@ store, and shape the JSON answer. They know nothing of rospy.
 """
 
 from flask import Blueprint, current_app, jsonify
+from werkzeug.routing import PathConverter
 
 from flask_move_server.errors import BadRequest
 from flask_move_server.geometry import Goal, Pose2D
-from flask_move_server.waypoints import check_name, make_waypoint
+from flask_move_server.waypoints import YAW_LIMIT, check_coordinate, check_name, make_waypoint
 from flask_move_server.web.body import json_object, number, text
 
 api = Blueprint("api", __name__)
@@ -50,7 +51,8 @@ def _goal_from(data):
         return Goal(Pose2D(wp.x, wp.y, wp.yaw), wp.name)
     if not any(k in data for k in ("x", "y", "yaw")):
         raise BadRequest('Say where to go: {"name": "kitchen"} or {"x": 1.0, "y": 2.0, "yaw": 0.0}.')
-    return Goal(Pose2D(number(data, "x"), number(data, "y"), number(data, "yaw") if "yaw" in data else 0.0))
+    yaw = check_coordinate("yaw", number(data, "yaw"), YAW_LIMIT) if "yaw" in data else 0.0
+    return Goal(Pose2D(check_coordinate("x", number(data, "x")), check_coordinate("y", number(data, "y")), yaw))
 
 
 @api.route("/stop", methods=["POST"])
@@ -75,12 +77,12 @@ def list_waypoints():
     return jsonify({"waypoints": [wp.as_dict() for wp in _store().all()]})
 
 
-@api.route("/waypoints/<path:name>", methods=["GET"])
+@api.route("/waypoints/<waypoint:name>", methods=["GET"])
 def get_waypoint(name):
     return jsonify(_store().get(name).as_dict())
 
 
-@api.route("/waypoints/<path:name>", methods=["PUT"])
+@api.route("/waypoints/<waypoint:name>", methods=["PUT"])
 def put_waypoint(name):
     check_name(name)
     data = json_object(("x", "y", "yaw", "from"))
@@ -95,10 +97,22 @@ def put_waypoint(name):
     return jsonify({"status": "ok", "created": created, "waypoint": waypoint.as_dict()}), 201 if created else 200
 
 
-@api.route("/waypoints/<path:name>", methods=["DELETE"])
+@api.route("/waypoints/<waypoint:name>", methods=["DELETE"])
 def delete_waypoint(name):
     _store().delete(name)
     return "", 204
+
+
+class WaypointNameConverter(PathConverter):
+    """``<waypoint:name>``: everything after ``/waypoints/``, line breaks and slashes included.
+
+    Werkzeug's ``path`` stops at a newline (its regex uses ``.``), so ``/waypoints/a%0Ab`` matched
+    no route and answered 404 "No such endpoint"; taking every character lets ``check_name``
+    refuse it with a 400 that says what a name may hold.
+    """
+
+    regex = r"[^/][\s\S]*?"
+    part_isolating = False
 
 
 @api.route("/status", methods=["GET"])
