@@ -68,6 +68,22 @@ class WaypointFileError(MoveServerError, OSError):
     code = "waypoints_file"
 
 
+class WaypointsLocked(WaypointFileError):
+    """Another process held the waypoints file's lock too long; nothing was changed (retry)."""
+
+    code = "waypoints_locked"
+
+    def __init__(self, lock_path, timeout):
+        self.lock_path = lock_path
+        super().__init__(
+            "Another process has held the lock {} for over {:g} s (record-waypoints saving to the file, "
+            "or a stuck or suspended one); nothing was changed. Try again; if it persists, find the "
+            "holder with 'fuser -v {}' and resume or stop it.".format(lock_path, timeout, lock_path))
+
+    def __str__(self):
+        return self.args[0]
+
+
 class Unauthorized(MoveServerError, PermissionError):
     """The request lacks the configured bearer token, or has a wrong one."""
 
