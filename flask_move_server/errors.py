@@ -73,12 +73,14 @@ class WaypointsLocked(WaypointFileError):
 
     code = "waypoints_locked"
 
-    def __init__(self, lock_path, timeout):
+    def __init__(self, lock_path, timeout, holder=None):
         self.lock_path = lock_path
+        self.holder = holder
         super().__init__(
-            "Another process has held the lock {} for over {:g} s (record-waypoints saving to the file, "
-            "or a stuck or suspended one); nothing was changed. Try again; if it persists, find the "
-            "holder with 'fuser -v {}' and resume or stop it.".format(lock_path, timeout, lock_path))
+            "The waypoints file's lock {} has been held for over {:g} s by {}; nothing was changed. "
+            "A record-waypoints saving to the file, stuck or suspended (Ctrl-Z), holds it so. Try again; "
+            "if it persists, resume or stop that process ('fuser -v {}' shows it).".format(
+                lock_path, timeout, holder or "another process", lock_path))
 
     def __str__(self):
         return self.args[0]

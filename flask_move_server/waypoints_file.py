@@ -71,8 +71,40 @@ def _acquire(fd, lock_path, timeout):
             return
         except BlockingIOError:
             if time.monotonic() >= deadline:
-                raise WaypointsLocked(lock_path, timeout)
+                raise WaypointsLocked(lock_path, timeout, lock_holder(lock_path))
             time.sleep(LOCK_POLL)
+
+
+def lock_holder(lock_path):
+    """Who holds the ``flock`` on ``lock_path``, as 'process 1234 (record-waypoints)'; None if unknown.
+
+    Read from Linux's /proc/locks, so the error can name what to resume or stop.
+    """
+    try:
+        st = os.stat(lock_path)
+        with open("/proc/locks", encoding="ascii", errors="replace") as f:
+            lines = f.read().splitlines()
+    except OSError:
+        return None
+    inode = "{:02x}:{:02x}:{}".format(os.major(st.st_dev), os.minor(st.st_dev), st.st_ino)
+    for fields in (line.split() for line in lines):
+        if len(fields) > 5 and fields[1] == "FLOCK" and fields[5] == inode:  # waiters have '->' in [1]
+            return _describe_process(fields[4])
+    return None
+
+
+def _describe_process(pid):
+    if pid == str(os.getpid()):
+        return "this process"
+    try:
+        with open("/proc/{}/cmdline".format(pid), "rb") as f:
+            argv = f.read().decode("utf-8", "replace").split("\0")
+    except OSError:
+        return "process {}".format(pid)
+    words = [os.path.basename(a) for a in argv[:2] if a]
+    if words and words[0].startswith("python") and len(words) > 1 and not words[1].startswith("-"):
+        words = words[1:]  # a console script: 'record-waypoints', not 'python3 record-waypoints'
+    return "process {} ({})".format(pid, " ".join(words)[:60])
 
 
 def atomic_write(path, text, backup_text=None):

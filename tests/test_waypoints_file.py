@@ -206,7 +206,9 @@ def test_a_held_file_lock_makes_a_change_give_up_with_an_error_naming_it(seed_fi
     writer.join(30)
     assert not writer.is_alive(), "a change waited for the file lock without end"
     assert isinstance(writer.outcome, WaypointsLocked)
-    assert "{}.lock".format(seed_file) in str(writer.outcome) and "record-waypoints" in str(writer.outcome)
+    message = str(writer.outcome)
+    assert "{}.lock".format(seed_file) in message and "record-waypoints" in message
+    assert "process {} (".format(lock_holder.pid) in message  # who to resume or stop
     assert seed_file.read_text() == SEED
 
 
