@@ -63,3 +63,23 @@ def test_an_emptied_file_answers_409_and_an_alias_bomb_keeps_status_small(ros_no
         status = requests.get(live.url + "/status", timeout=10)
         assert len(status.content) < 5000
         assert "anchors and aliases" in status.json()["waypoints"]["problem"]
+
+
+def test_puts_stuck_on_the_lock_free_every_worker_thread_again(ros_node, unique_name, tmp_path):
+    path = tmp_path / "waypoints.yaml"
+    path.write_text(SEED_WRITTEN)
+    holder = subprocess.Popen([sys.executable, "-c", LOCK_HOLDER, str(path) + ".lock"],
+                              stdout=subprocess.PIPE, text=True)
+    try:
+        assert holder.stdout.readline().strip() == "held"
+        with robot_server(ros_node, unique_name, path, move_base=False) as live, \
+                concurrent.futures.ThreadPoolExecutor(4) as pool:
+            puts = [pool.submit(requests.put, live.url + "/waypoints/p{}".format(i),
+                                json={"x": i, "y": 0, "yaw": 0}, timeout=60) for i in range(4)]
+            wait_for(lambda: sum(c[0] == "PUT" for c in live.calls) == 4)  # every worker thread is taken
+            assert requests.get(live.url + "/health", timeout=30).status_code == 200
+            assert requests.post(live.url + "/stop", timeout=30).status_code == 200
+            assert [p.result(timeout=60).status_code for p in puts] == [503] * 4
+    finally:
+        holder.kill()
+        holder.communicate()
