@@ -147,7 +147,7 @@ class Server:
         from flask_move_server.web import create_app
 
         stack = self._stack
-        store = waypoints.WaypointStore(self.config.waypoints.file)
+        store = waypoints.WaypointStore(self.config.waypoints.file, self.config.waypoints.lock_timeout)
         robot = self._build_robot(stack)
         app = create_app(self.config, robot, store, token=self.config.resolved_token())
         self.http = _http_server(app, self.config.server)

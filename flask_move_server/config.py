@@ -97,6 +97,7 @@ class WaypointsConfig:
     """Where the named places live."""
 
     file: str = _path(default="waypoints.yaml")
+    lock_timeout: float = _check(_positive, default=3.0)
 
 
 @dataclass

@@ -68,6 +68,24 @@ class WaypointFileError(MoveServerError, OSError):
     code = "waypoints_file"
 
 
+class WaypointsLocked(WaypointFileError):
+    """Another process held the waypoints file's lock too long; nothing was changed (retry)."""
+
+    code = "waypoints_locked"
+
+    def __init__(self, lock_path, timeout, holder=None):
+        self.lock_path = lock_path
+        self.holder = holder
+        super().__init__(
+            "The waypoints file's lock {} has been held for over {:g} s by {}; nothing was changed. "
+            "A record-waypoints saving to the file, stuck or suspended (Ctrl-Z), holds it so. Try again; "
+            "if it persists, resume or stop that process ('fuser -v {}' shows it).".format(
+                lock_path, timeout, holder or "another process", lock_path))
+
+    def __str__(self):
+        return self.args[0]
+
+
 class Unauthorized(MoveServerError, PermissionError):
     """The request lacks the configured bearer token, or has a wrong one."""
 

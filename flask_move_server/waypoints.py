@@ -11,23 +11,26 @@ directory, fsync, rename, fsync of the directory, the previous version kept as
 ``.bak``), an ``fcntl`` lock serialises writers across processes (the server
 and ``record-waypoints``), and a change made on disk by someone else (a text
 editor) is picked up before the next read or write instead of being
-overwritten. Pure: no rospy, no Flask.
+overwritten. A file that would silently lose the last good waypoints (empty,
+cut short, no ``waypoints:``) is a problem to report, not a deletion: only
+``waypoints: {}`` clears them. Anchors and aliases are refused (a few hundred
+bytes could expand to megabytes). The file plumbing lives in
+:mod:`flask_move_server.waypoints_file`. Pure: no rospy, no Flask.
 """
 
 import contextlib
 import difflib
-import fcntl
 import json
 import logging
 import math
 import os
 import re
-import tempfile
 import threading
 from dataclasses import dataclass
 
 import yaml
 
+from flask_move_server import waypoints_file
 from flask_move_server.errors import BadWaypoint, UnknownWaypoint, WaypointFileError
 
 log = logging.getLogger(__name__)
@@ -40,6 +43,7 @@ POSITION_LIMIT = 1e6
 YAW_LIMIT = 1e3
 _NAME_RE = re.compile(r"[A-Za-z0-9_. -]{1,64}")
 _PLAIN_KEY_RE = re.compile(r"[A-Za-z_][A-Za-z0-9_-]*")
+MAX_QUOTED = 300  # characters of the file an error message may quote
 
 
 @dataclass(frozen=True)
@@ -92,7 +96,19 @@ def make_waypoint(name, x, y, yaw):
 
 
 class _UniqueKeyLoader(yaml.SafeLoader):
-    """SafeLoader that rejects a name given twice instead of keeping the last."""
+    """SafeLoader that rejects a name given twice, and any anchor or alias.
+
+    Aliases let a few hundred bytes expand to megabytes (in memory, in error
+    messages, in /status); a waypoints file has no use for them.
+    """
+
+    def compose_node(self, parent, index):
+        event = self.peek_event()
+        if isinstance(event, yaml.AliasEvent) or getattr(event, "anchor", None) is not None:
+            raise yaml.composer.ComposerError(
+                None, None, "anchors and aliases ('&', '*') are not allowed in a waypoints file", event.start_mark
+            )
+        return super().compose_node(parent, index)
 
 
 def _construct_mapping(loader, node, deep=False):
@@ -110,25 +126,39 @@ def _construct_mapping(loader, node, deep=False):
 _UniqueKeyLoader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, _construct_mapping)
 
 
+def _shorten(text, limit=MAX_QUOTED):
+    """``text`` cut to ``limit`` characters: an error quoting the file stays readable."""
+    return text if len(text) <= limit else text[: limit - 1] + "\u2026"
+
+
 def parse(text, source="waypoints"):
     """Parse the waypoints file's text into an ordered ``{name: Waypoint}``."""
+    return _waypoints_of(entries_of(text, source), source)
+
+
+def entries_of(text, source="waypoints"):
+    """The raw ``waypoints:`` mapping of the file's text; None when blank or not given."""
     try:
         data = yaml.load(text, Loader=_UniqueKeyLoader)  # noqa: S506 - a SafeLoader subclass
     except yaml.YAMLError as exc:
-        raise WaypointFileError("{} is not valid YAML: {}".format(source, " ".join(str(exc).split())))
+        raise WaypointFileError("{} is not valid YAML: {}".format(source, _shorten(" ".join(str(exc).split()))))
     if data is None:
-        return {}
+        return None
     if not isinstance(data, dict) or set(data) - {"waypoints"}:
         raise WaypointFileError("{} must hold one mapping, 'waypoints: {{name: [x, y, yaw]}}'".format(source))
-    entries = data.get("waypoints") or {}
-    if not isinstance(entries, dict):
+    entries = data.get("waypoints")
+    if entries is not None and not isinstance(entries, dict):
         raise WaypointFileError("{}: 'waypoints' must map names to [x, y, yaw]".format(source))
+    return entries
+
+
+def _waypoints_of(entries, source):
     waypoints = {}
-    for name, entry in entries.items():
+    for name, entry in (entries or {}).items():
         try:
             waypoints[name] = _entry(name, entry)
         except BadWaypoint as exc:
-            raise WaypointFileError("{}: waypoint {!r}: {}".format(source, name, exc))
+            raise WaypointFileError(_shorten("{}: waypoint {!r}: {}".format(source, name, exc), 2 * MAX_QUOTED))
     return waypoints
 
 
@@ -137,7 +167,8 @@ def _entry(name, entry):
         return make_waypoint(name, *entry)
     if isinstance(entry, dict) and set(entry) == {"x", "y", "yaw"}:
         return make_waypoint(name, entry["x"], entry["y"], entry["yaw"])
-    raise BadWaypoint("expected [x, y, yaw] or {x: .., y: .., yaw: ..}, got " + json.dumps(entry, default=repr))
+    got = _shorten(json.dumps(entry, default=repr))
+    raise BadWaypoint("expected [x, y, yaw] or {x: .., y: .., yaw: ..}, got " + got)
 
 
 def dump(waypoints):
@@ -172,14 +203,22 @@ def suggest(name, names, n=3):
 
 
 class WaypointStore:
-    """The waypoints of one YAML file, safe to share between threads and processes."""
+    """The waypoints of one YAML file, safe to share between threads and processes.
 
-    def __init__(self, path):
+    Readers take only the in-process lock, never the cross-process file lock,
+    so a stuck ``record-waypoints`` holding the file lock cannot block them.
+    """
+
+    def __init__(self, path, lock_timeout=3.0):
         self.path = os.path.abspath(path)
+        self.lock_timeout = lock_timeout
         self._lock = threading.Lock()
-        self._waypoints = {}
+        self._waypoints = {}  # the last good set
+        self._good_text = None  # its file text: what .bak becomes on the next save
+        self._loaded = False
         self._stamp = None
-        self.problem = None  # why the file on disk could not be loaded, if it could not
+        self._problem = None
+        waypoints_file.remove_leftovers(self.path, lock_timeout)
         with self._lock:
             self._refresh(strict=True)
 
@@ -200,6 +239,13 @@ class WaypointStore:
                 return self._waypoints[name]
             except KeyError:
                 raise UnknownWaypoint(name, suggest(name, self._waypoints))
+
+    @property
+    def problem(self):
+        """Why the file on disk cannot be loaded now (shown by /status), or None."""
+        with self._lock:
+            self._refresh()
+            return self._problem
 
     # writing ---------------------------------------------------------------
 
@@ -240,7 +286,9 @@ class WaypointStore:
 
     @contextlib.contextmanager
     def _edit(self):
-        with self._lock, _file_lock(self.path + ".lock"):
+        # The file lock first, with a timeout, and outside the in-process lock:
+        # readers never wait behind a writer that waits for another process.
+        with waypoints_file.file_lock(self.path + ".lock", self.lock_timeout), self._lock:
             self._refresh(strict=True)
             waypoints = dict(self._waypoints)
             yield waypoints
@@ -251,104 +299,68 @@ class WaypointStore:
 
     def _refresh(self, strict=False):
         """Reload when the file changed on disk; with ``strict``, refuse a broken file."""
-        stamp = _stamp(self.path)
-        if stamp == self._stamp and not (strict and self.problem):
+        stamp = waypoints_file.stamp(self.path)
+        if stamp == self._stamp and not (strict and self._problem):
             return
         try:
-            text = _read(self.path)
-            self._waypoints = parse(text, self.path) if text is not None else {}
+            text = waypoints_file.read(self.path)
+            waypoints = self._load(text)
         except WaypointFileError as exc:
-            self._stamp, self.problem = stamp, str(exc)
+            self._stamp, self._problem = stamp, str(exc)
             log.error("%s; still using the %d waypoints loaded before", exc, len(self._waypoints))
             if strict:
                 raise WaypointFileError(
-                    "{}. Fix the file (the last good version is {}.bak); "
-                    "nothing was changed.".format(exc, self.path)
+                    "{}; nothing was changed. Fix the file, or put back the version before the last change "
+                    "(cp {p}.bak {p}), or write 'waypoints: {{}}' to it to delete every waypoint on "
+                    "purpose.".format(exc, p=self.path)
                 )
             return
         if self._stamp is not None:
-            log.info("reloaded %s: it changed on disk (%d waypoints)", self.path, len(self._waypoints))
-        self._stamp, self.problem = stamp, None
+            log.info("reloaded %s: it changed on disk (%d waypoints)", self.path, len(waypoints))
+        self._waypoints, self._good_text, self._loaded = waypoints, text, True
+        self._stamp, self._problem = stamp, None
+
+    def _load(self, text):
+        """The waypoints of ``text``, or WaypointFileError when it is broken or would lose the last good set."""
+        entries = entries_of(text, self.path) if text is not None else None
+        known = len(self._waypoints) if self._loaded else _count_backup(self.path)
+        loss = _why_lost(text, entries, self._loaded) if known else None
+        if loss:
+            raise WaypointFileError("{} {}, but the last good version had {} waypoints".format(self.path, loss, known))
+        return _waypoints_of(entries, self.path)
 
     def _save(self, waypoints):
         text = dump(waypoints.values())
         try:
-            _atomic_write(self.path, text)
+            waypoints_file.atomic_write(self.path, text, backup_text=self._good_text)
         except OSError as exc:
             raise WaypointFileError("cannot save {}: {}; nothing was changed".format(self.path, exc.strerror or exc))
-        self._stamp = _stamp(self.path)
+        self._stamp, self._good_text = waypoints_file.stamp(self.path), text
 
 
-def _stamp(path):
+def _why_lost(text, entries, loaded):
+    """Why a file holding no or cut-short waypoints is not a deliberate deletion, or None.
+
+    Only ``waypoints: {}`` deletes everything on purpose. An empty file, one
+    without ``waypoints:`` or one not ending with the newline every save and
+    editor writes is what an in-place write in progress (or a failed
+    ``printf > file``) looks like. A missing file counts once one was loaded:
+    some editors remove the file for a moment while saving.
+    """
+    if text is None:
+        return "is missing" if loaded else None
+    if not text.strip():
+        return "is empty"
+    if not text.endswith("\n"):
+        return "does not end with a newline, so it looks cut short (a write in progress or interrupted)"
+    if entries is None:
+        return "holds no waypoints and does not say 'waypoints: {}'"
+    return None
+
+
+def _count_backup(path):
+    """How many waypoints ``path.bak`` holds (0 if none or unreadable): the reference at start-up."""
     try:
-        st = os.stat(path)
-    except FileNotFoundError:
-        return None
-    return (st.st_ino, st.st_size, st.st_mtime_ns, st.st_ctime_ns)
-
-
-def _read(path):
-    try:
-        with open(path, encoding="utf-8") as f:
-            return f.read()
-    except FileNotFoundError:
-        return None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise WaypointFileError("cannot read {}: {}".format(path, exc))
-
-
-@contextlib.contextmanager
-def _file_lock(lock_path):
-    """An exclusive ``flock`` on a lock file beside the data (the data file is replaced)."""
-    try:
-        fd = os.open(lock_path, os.O_RDWR | os.O_CREAT, 0o644)
-    except OSError as exc:
-        raise WaypointFileError("cannot lock {}: {}".format(lock_path, exc.strerror))
-    try:
-        fcntl.flock(fd, fcntl.LOCK_EX)
-        yield
-    finally:
-        os.close(fd)  # closing releases the lock
-
-
-def _atomic_write(path, text):
-    """Write ``text`` to ``path`` so that a crash leaves the old or the new file, whole."""
-    directory = os.path.dirname(path)
-    fd, tmp = tempfile.mkstemp(prefix=".{}.".format(os.path.basename(path)), suffix=".tmp", dir=directory)
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as f:
-            f.write(text)
-            f.flush()
-            os.fsync(f.fileno())
-        if os.path.exists(path):
-            os.chmod(tmp, os.stat(path).st_mode & 0o7777)
-            _keep_backup(path)
-        os.replace(tmp, path)
-    except BaseException:
-        with contextlib.suppress(OSError):
-            os.unlink(tmp)
-        raise
-    _fsync_dir(directory)
-
-
-def _keep_backup(path):
-    """Make ``path.bak`` the current version, atomically (hard link, else copy)."""
-    bak, tmp = path + ".bak", path + ".bak.tmp"
-    with contextlib.suppress(FileNotFoundError):
-        os.unlink(tmp)
-    try:
-        os.link(path, tmp)
-    except OSError:
-        with open(path, "rb") as src, open(tmp, "wb") as dst:
-            dst.write(src.read())
-            dst.flush()
-            os.fsync(dst.fileno())
-    os.replace(tmp, bak)
-
-
-def _fsync_dir(directory):
-    fd = os.open(directory, os.O_RDONLY)
-    try:
-        os.fsync(fd)
-    finally:
-        os.close(fd)
+        return len(parse(waypoints_file.read(path + ".bak") or "", path + ".bak"))
+    except WaypointFileError:
+        return 0

@@ -176,10 +176,10 @@ def test_a_broken_edit_on_disk_keeps_the_last_good_waypoints_and_refuses_writes(
 def test_save_failure_leaves_store_unchanged_on_full_disk(seed_file, monkeypatch):
     store = WaypointStore(seed_file)
 
-    def disk_full(path, text):
+    def disk_full(path, text, backup_text=None):
         raise OSError(28, "No space left on device")
 
-    monkeypatch.setattr(wpmod, "_atomic_write", disk_full)
+    monkeypatch.setattr(wpmod.waypoints_file, "atomic_write", disk_full)
     with pytest.raises(WaypointFileError, match="No space left"):
         store.put(make_waypoint("porch", 1, 1, 1))
     assert "porch" not in [w.name for w in store.all()]

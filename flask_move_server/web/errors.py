@@ -24,6 +24,7 @@ STATUS = (
     (errors.BadRequest, 400),
     (errors.NavigationFailed, 409),
     (errors.NoPose, 409),
+    (errors.WaypointsLocked, 503),
     (errors.WaypointFileError, 409),
     (errors.RosUnavailable, 503),
     (errors.NavigationUnavailable, 503),

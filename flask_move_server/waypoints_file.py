@@ -1,0 +1,175 @@
+"""The plumbing under the waypoints file: stamps, reads, the cross-process lock, atomic saves.
+
+Moved out of ``waypoints.py`` (issue 10) so that the model and format stay one
+concern and this one can grow the lock timeout and start-up clean-up. A save
+writes a temporary file in the same directory, fsyncs it, renames it over the
+file and fsyncs the directory, so a crash (even SIGKILL) leaves the old or the
+new file whole; the previous good version goes to ``<file>.bak`` first. An
+``fcntl`` lock on ``<file>.lock`` serialises writers across processes, and is
+given up after a timeout instead of waiting forever on a stuck holder. Pure: no
+rospy, no Flask.
+"""
+
+import contextlib
+import fcntl
+import glob
+import logging
+import os
+import tempfile
+import time
+
+from flask_move_server.errors import WaypointFileError, WaypointsLocked
+
+log = logging.getLogger(__name__)
+
+LOCK_POLL = 0.02  # seconds between tries for a held lock
+
+
+def stamp(path):
+    """What identifies one version of ``path`` on disk; None when it does not exist."""
+    try:
+        st = os.stat(path)
+    except FileNotFoundError:
+        return None
+    return (st.st_ino, st.st_size, st.st_mtime_ns, st.st_ctime_ns)
+
+
+def read(path):
+    """The text of ``path``, or None when it does not exist."""
+    try:
+        with open(path, encoding="utf-8") as f:
+            return f.read()
+    except FileNotFoundError:
+        return None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise WaypointFileError("cannot read {}: {}".format(path, exc))
+
+
+@contextlib.contextmanager
+def file_lock(lock_path, timeout):
+    """An exclusive ``flock`` on a lock file beside the data (the data file is replaced).
+
+    Waits at most ``timeout`` seconds, then raises :class:`WaypointsLocked`: a
+    suspended or stuck ``record-waypoints`` must not hang every save forever.
+    """
+    try:
+        fd = os.open(lock_path, os.O_RDWR | os.O_CREAT, 0o644)
+    except OSError as exc:
+        raise WaypointFileError("cannot lock {}: {}".format(lock_path, exc.strerror))
+    try:
+        _acquire(fd, lock_path, timeout)
+        yield
+    finally:
+        os.close(fd)  # closing releases the lock
+
+
+def _acquire(fd, lock_path, timeout):
+    deadline = time.monotonic() + timeout
+    while True:
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            return
+        except BlockingIOError:
+            if time.monotonic() >= deadline:
+                raise WaypointsLocked(lock_path, timeout, lock_holder(lock_path))
+            time.sleep(LOCK_POLL)
+
+
+def lock_holder(lock_path):
+    """Who holds the ``flock`` on ``lock_path``, as 'process 1234 (record-waypoints)'; None if unknown.
+
+    Read from Linux's /proc/locks, so the error can name what to resume or stop.
+    """
+    try:
+        st = os.stat(lock_path)
+        with open("/proc/locks", encoding="ascii", errors="replace") as f:
+            lines = f.read().splitlines()
+    except OSError:
+        return None
+    inode = "{:02x}:{:02x}:{}".format(os.major(st.st_dev), os.minor(st.st_dev), st.st_ino)
+    for fields in (line.split() for line in lines):
+        if len(fields) > 5 and fields[1] == "FLOCK" and fields[5] == inode:  # waiters have '->' in [1]
+            return _describe_process(fields[4])
+    return None
+
+
+def _describe_process(pid):
+    if pid == str(os.getpid()):
+        return "this process"
+    try:
+        with open("/proc/{}/cmdline".format(pid), "rb") as f:
+            argv = f.read().decode("utf-8", "replace").split("\0")
+    except OSError:
+        return "process {}".format(pid)
+    words = [os.path.basename(a) for a in argv[:2] if a]
+    if words and words[0].startswith("python") and len(words) > 1 and not words[1].startswith("-"):
+        words = words[1:]  # a console script: 'record-waypoints', not 'python3 record-waypoints'
+    return "process {} ({})".format(pid, " ".join(words)[:60])
+
+
+def atomic_write(path, text, backup_text=None):
+    """Write ``text`` to ``path`` so that a crash leaves the old or the new file, whole.
+
+    ``backup_text``, when given, becomes ``path.bak`` first: the caller passes
+    the last good version it loaded, never what happens to be on disk now (a
+    hand edit in progress must not become the backup).
+    """
+    directory = os.path.dirname(path)
+    fd, tmp = tempfile.mkstemp(prefix=".{}.".format(os.path.basename(path)), suffix=".tmp", dir=directory)
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8") as f:
+            f.write(text)
+            f.flush()
+            os.fsync(f.fileno())
+        if os.path.exists(path):
+            os.chmod(tmp, os.stat(path).st_mode & 0o7777)
+        if backup_text is not None:
+            _write_backup(path, backup_text)
+        os.replace(tmp, path)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+        raise
+    _fsync_dir(directory)
+
+
+def _write_backup(path, text):
+    """Make ``path.bak`` hold ``text``, atomically (its own temp file, fsync, rename)."""
+    bak, tmp = path + ".bak", path + ".bak.tmp"
+    with open(tmp, "w", encoding="utf-8") as f:
+        f.write(text)
+        f.flush()
+        os.fsync(f.fileno())
+    os.replace(tmp, bak)
+
+
+def leftovers(path):
+    """Temporary files a killed save of ``path`` may have left behind."""
+    directory, name = os.path.split(path)
+    pattern = os.path.join(glob.escape(directory), ".{}.*.tmp".format(glob.escape(name)))
+    found = glob.glob(pattern)
+    if os.path.exists(path + ".bak.tmp"):
+        found.append(path + ".bak.tmp")
+    return sorted(found)
+
+
+def remove_leftovers(path, timeout):
+    """Delete what a killed save left, under the lock so no live save loses its temp file."""
+    if not leftovers(path):
+        return
+    try:
+        with file_lock(path + ".lock", timeout):
+            for tmp in leftovers(path):
+                with contextlib.suppress(FileNotFoundError):
+                    os.unlink(tmp)
+                log.warning("removed %s, left by a save that was killed midway", tmp)
+    except WaypointFileError as exc:
+        log.warning("left temporary files of %s in place: %s", path, exc)
+
+
+def _fsync_dir(directory):
+    fd = os.open(directory, os.O_RDONLY)
+    try:
+        os.fsync(fd)
+    finally:
+        os.close(fd)
