@@ -23,6 +23,7 @@ _GOAL_ENDINGS = {
     "aborted": (ExitStatus.ABORTED, "move_base aborted the goal to {}: no path was found or the robot got stuck."),
     "canceled": (ExitStatus.CANCELED, "the goal to {} was canceled before the robot arrived."),
     "rejected": (ExitStatus.REJECTED, "move_base rejected the goal to {}: is it inside the map?"),
+    "canceling": (ExitStatus.CANCELED, "the goal to {} was canceled before the robot arrived."),
     "idle": (ExitStatus.CANCELED, "the goal to {} is gone (the server restarted?)."),
 }
 

@@ -32,7 +32,8 @@ class Robot:
             return True
         if state == "active":
             return False
-        raise NavigationFailed(state, _failure_message(state, self.navigator.status()))
+        nav = self.navigator.status()
+        raise NavigationFailed(state, nav.get("message") or _failure_message(state, nav))
 
     def stop(self):
         """Cancel the goal, end teleop, command zero velocity."""
@@ -85,7 +86,7 @@ class Robot:
 
 def _failure_message(state, nav):
     target = repr(nav["target"]) if nav["target"] else "the goal"
-    if state == "canceled":
+    if state in ("canceled", "canceling"):
         return "The goal to {} was canceled before the robot arrived.".format(target)
     if state == "rejected":
         return "move_base rejected the goal to {}: is it inside the map?".format(target)

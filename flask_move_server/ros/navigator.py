@@ -1,8 +1,13 @@
 """Goals to move_base, through actionlib (or the plain topic), and how they go.
 
-The state of the current goal is one of ``idle``, ``active``, ``succeeded``,
-``aborted``, ``canceled``, ``rejected``. Each goal gets a sequence number, so a
-late callback of a replaced goal never overwrites the state of the new one.
+The state of the current goal is one of ``idle``, ``active``, ``canceling``,
+``succeeded``, ``aborted``, ``canceled``, ``rejected``. Each goal gets a
+sequence number, so a late callback of a replaced goal never overwrites the
+state of the new one. ``canceling``: a cancel was sent and move_base has not
+confirmed it yet (action mode; topic mode has no confirmation, so ``canceled``
+at once). The first end of a goal is its end: when the ROS master stops
+answering, a goal under way becomes ``aborted`` with a message (its cancel is
+still sent), and a later word from move_base about it changes nothing.
 """
 
 import logging
@@ -20,10 +25,11 @@ from flask_move_server.geometry import Pose2D, quaternion_to_yaw, yaw_to_quatern
 
 log = logging.getLogger(__name__)
 
-IDLE, ACTIVE, SUCCEEDED, ABORTED, CANCELED, REJECTED = (
-    "idle", "active", "succeeded", "aborted", "canceled", "rejected",
+IDLE, ACTIVE, CANCELING, SUCCEEDED, ABORTED, CANCELED, REJECTED = (
+    "idle", "active", "canceling", "succeeded", "aborted", "canceled", "rejected",
 )
 TERMINAL = (SUCCEEDED, ABORTED, CANCELED, REJECTED)
+UNDER_WAY = (ACTIVE, CANCELING)
 
 _FROM_STATUS = {
     GoalStatus.SUCCEEDED: SUCCEEDED,
@@ -48,10 +54,12 @@ class Navigator:
         self._state = IDLE
         self._goal = None
         self._feedback_pose = None
+        self._message = None
         self._client = None
         self._goal_pub = None
         self._cancel_pub = None
         node.when_ready(self._setup)
+        node.when_lost(self._master_lost)
 
     def _setup(self):
         if self._config.goal_interface == "action":
@@ -68,7 +76,7 @@ class Navigator:
         with self._cond:
             self._seq += 1
             seq = self._seq
-            self._goal, self._state, self._feedback_pose = goal, ACTIVE, None
+            self._goal, self._state, self._feedback_pose, self._message = goal, ACTIVE, None, None
             self._cond.notify_all()
         if self._client is not None:
             self._client.send_goal(
@@ -82,18 +90,27 @@ class Navigator:
         return seq
 
     def cancel(self):
-        """Cancel the goal under way, if any; True when one was."""
+        """Cancel the goal under way, if any; True when one was (not when its cancel is already sent).
+
+        Action mode: ``canceling`` until move_base confirms (preempted or recalled);
+        topic mode: ``canceled`` at once.
+        """
         with self._cond:
             if self._state != ACTIVE:
                 return False
             seq = self._seq
-        if self._client is not None:
-            self._client.cancel_goal()
-        elif self._cancel_pub is not None:
-            self._cancel_pub.publish(GoalID())
-            self._finish(seq, CANCELED)
+            self._state = CANCELING if self._client is not None else CANCELED
+            self._cond.notify_all()
+        self._send_cancel()
         log.info("goal %d: cancel requested", seq)
         return True
+
+    def _send_cancel(self):
+        client, cancel_pub = self._client, self._cancel_pub
+        if client is not None:
+            client.cancel_goal()
+        elif cancel_pub is not None:
+            cancel_pub.publish(GoalID())
 
     def wait(self, seq, timeout):
         """Block until goal ``seq`` ends or ``timeout`` passes; its state then."""
@@ -108,14 +125,16 @@ class Navigator:
 
     @property
     def active(self):
+        """True while the goal is under way and not yet asked to cancel."""
         return self._state == ACTIVE
 
     def status(self, reading=None):
         """The navigation part of ``/status``; ``reading``: the pose to measure from (else looked up)."""
         with self._cond:
-            goal, state, seq = self._goal, self._state, self._seq
+            goal, state, seq, message = self._goal, self._state, self._seq, self._message
         return {
             "state": state,
+            "message": message,
             "target": goal.target if goal else None,
             "goal": goal.pose.as_dict() if goal else None,
             "goal_id": seq or None,
@@ -167,9 +186,24 @@ class Navigator:
 
     def _finish(self, seq, state):
         with self._cond:
-            if seq == self._seq:
+            if seq == self._seq and self._state in UNDER_WAY:  # the first end of a goal is its end
                 self._state = state
                 self._cond.notify_all()
+
+    def _master_lost(self):
+        """No master: move_base's word may never come, so a goal under way ends ``aborted`` now."""
+        with self._cond:
+            if self._state not in UNDER_WAY:
+                return
+            seq, self._state = self._seq, ABORTED
+            self._message = ("The ROS master stopped answering, so the goal was given up (and a cancel sent "
+                             "to move_base); send it again once /health says \"ros\": \"connected\".")
+            self._cond.notify_all()
+        log.error("goal %d: aborted, the ROS master stopped answering", seq)
+        try:
+            self._send_cancel()  # over the open connection: move_base must not resume it later
+        except Exception as exc:
+            log.warning("goal %d: could not send its cancel: %s", seq, exc)
 
     def _feedback(self, seq, feedback):
         p = feedback.base_position.pose
