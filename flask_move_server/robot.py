@@ -3,7 +3,7 @@
 The Flask app knows this class, not rospy: the same routes run against the
 real robot and the simulated one. It composes the parts ``cli`` built and adds
 the rules that span them (teleop cancels a goal, a goal ends teleop, stop ends
-both and zeroes the velocity).
+both and zeroes the velocity, the teleop deadman halts the motors at once).
 """
 
 from flask_move_server.errors import NavigationFailed
@@ -18,6 +18,8 @@ class Robot:
         self.pose = pose
         self.teleop_control = teleop
         self.drive = drive
+        # A zero Twist is ramped down by the base; a deadman that runs out must stop at once.
+        teleop.on_expire(drive.stop)
 
     def goto(self, goal):
         """Send the robot to ``goal``; returns the goal's sequence number."""

@@ -1,7 +1,8 @@
-"""Stopping tells the truth: /stop, and a lost ROS master.
+"""Stopping tells the truth and happens at once: the teleop deadman, /stop, and a lost ROS master.
 
-Real rospy and actionlib on the session's master, a scripted move_base; for
-the lost master, a whole ``--sim`` server on a master this test kills.
+Real rospy and actionlib on the session's master, the real base controller on
+the sim motor backend (its applied commands recorded), a scripted move_base;
+for the lost master, a whole ``--sim`` server on a master this test kills.
 """
 
 import os
@@ -12,11 +13,73 @@ import time
 import pytest
 
 from flask_move_server import cli
+from flask_move_server.config import DriveConfig, FramesConfig
+from flask_move_server.drive import make_drive
 from flask_move_server.waypoints import WaypointStore
 from flask_move_server.web import create_app
 from tests.conftest import ROOT, ServerProcess, free_port, start_master, stop_process, wait_for
 from tests.robot_fixtures import Recorder, no_drive
 from tests.standins.move_base import HOLD_X
+
+DEADMAN = 0.3
+ACCEL = 0.1  # m/s²: a ramp from the speed reached below down to 0 takes well over a second
+
+
+@pytest.fixture
+def driven(robot_config, ros_node, unique_name):
+    """A robot whose teleop drives the real base controller (sim motors) over /cmd_vel."""
+    drive_config = DriveConfig(backend="sim", cmd_vel_topic=robot_config.teleop.topic, odom_topic=unique_name + "/odom",
+                               max_linear_accel=ACCEL, cmd_vel_timeout=5.0)  # the watchdog stays out of the way
+    robot_config.teleop.deadman = DEADMAN
+    frames = FramesConfig(odom=unique_name + "_odom", base_link=unique_name + "_base_link")
+    drive = make_drive(drive_config, ros_node, frames)
+    robot = cli.build_robot(robot_config, ros_node, drive)
+    wait_for(lambda: robot.teleop_control._pub is not None and robot.teleop_control._pub.get_num_connections(),
+             message="teleop to reach the base controller")
+    yield robot, create_app(robot_config, robot, WaypointStore(robot_config.waypoints.file)).test_client()
+    robot.close()
+    drive.close()
+
+
+def _drive_for(client, seconds, linear=0.4):
+    """Hold /teleop like a joystick page (every 0.1 s); the time of the last request's answer."""
+    end = time.monotonic() + seconds
+    while time.monotonic() < end:
+        assert client.post("/teleop", json={"linear": linear}).status_code == 200
+        time.sleep(0.1)
+    assert client.post("/teleop", json={"linear": linear}).status_code == 200
+    return time.monotonic()
+
+
+def _after(history, since):
+    return [(t, left) for t, left, _ in list(history) if t >= since]
+
+
+def test_deadman_expiry_stops_the_motors_at_once(driven):
+    robot, client = driven
+    motors = robot.drive.backend
+    start = time.monotonic()
+    last = _drive_for(client, 1.5)
+    speed = robot.drive.motion.velocity[0]
+    assert speed >= 0.1, "the ramp got the robot going (a ramp down would take {:.1f} s)".format(speed / ACCEL)
+    stopped = wait_for(lambda: motors.applied()[:2] == (0.0, 0.0) and motors.applied(), timeout=10,
+                       message="the motors to stop after the deadman")
+    assert stopped[2] - last < DEADMAN + 0.5  # a ramp from `speed` would take >= 1 s more
+    moving = [(t, left) for t, left in _after(motors.history, start) if t < stopped[2]]
+    assert moving[-1][1] == max(left for _, left in moving), "full speed straight to 0, no ramp steps"
+    assert robot.drive.status()["watchdog_tripped"] is False and not robot.teleop_control.status()["active"]
+
+
+def test_a_zero_teleop_command_still_ramps_down(driven):
+    robot, client = driven
+    motors = robot.drive.backend
+    _drive_for(client, 1.5)
+    peak = motors.applied()[0]
+    zero_sent = time.monotonic()
+    assert client.post("/teleop", json={"linear": 0.0}).status_code == 200
+    wait_for(lambda: motors.applied()[:2] == (0.0, 0.0), timeout=10, message="the ramp to reach 0")
+    steps = [left for _, left in _after(motors.history, zero_sent)]
+    assert len(set(left for left in steps if 0 < left < peak)) >= 3, "gentle steps down, not a halt"
 
 
 # -- /stop is truthful ----------------------------------------------------------------------------
