@@ -23,6 +23,8 @@ STATUS = (
     (errors.NavigationFailed, 409),
     (errors.NoPose, 409),
     (errors.WaypointFileError, 409),
+    (errors.EStopLatched, 409),
+    (errors.EStopHeld, 409),
     (errors.RosUnavailable, 503),
     (errors.NavigationUnavailable, 503),
     (errors.DriveError, 503),
