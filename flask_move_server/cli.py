@@ -195,9 +195,18 @@ class Server:
             stack.callback(Simulation(cfg, node, drive).close)
         robot = build_robot(cfg, node, drive, estop)
         stack.callback(robot.close)
+        self._watch_estop_button(stack, estop)
         self._node = node
         self.robot = robot
         return robot
+
+    def _watch_estop_button(self, stack, estop):
+        """``drive.estop_pin``: a press of the physical e-stop button latches ``estop``."""
+        if self.config.drive.estop_pin is None:
+            return
+        from flask_move_server.drive.estop_button import EStopButton
+
+        stack.callback(EStopButton(self.config.drive, estop, source=self.config.source).close)
 
     def _own_master(self, stack):
         """``--sim``: start a ROS master when none answers at ROS_MASTER_URI; it is stopped last."""

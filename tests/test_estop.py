@@ -1,7 +1,7 @@
 """The e-stop latch: POST /estop stops everything and refuses motion until POST /estop/release.
 
-Against the real robot (rospy, actionlib, a scripted move_base) and the real base
-controller on the sim motor backend.
+Against the real robot (rospy, actionlib, a scripted move_base), the real base
+controller on the sim motor backend, and the e-stop button on the RPi.GPIO stand-in.
 """
 
 import datetime
@@ -16,7 +16,10 @@ from flask_move_server.drive.estop import EStop
 from flask_move_server.waypoints import WaypointStore
 from flask_move_server.web import create_app
 from tests.conftest import wait_for
+from tests.standins.gpio import HIGH, LOW, RecordingGPIO
 from tests.standins.move_base import HOLD_X
+
+BUTTON = 26
 
 
 @pytest.fixture
@@ -144,6 +147,80 @@ def test_estop_needs_the_token_like_every_route(robot_config, robot, store):
         assert token_client.post(path).status_code == 401
     assert robot.estop.latched is False
     assert token_client.post("/estop", headers={"Authorization": "Bearer s3cret"}).status_code == 200
+
+
+# -- the e-stop button (drive.estop_pin) on the RPi.GPIO stand-in ------------------------------------
+
+
+@pytest.fixture
+def gpio():
+    return RecordingGPIO()
+
+
+def _button(gpio, estop, debounce=0.05, pin=BUTTON, **drive):
+    from flask_move_server.drive.estop_button import EStopButton
+
+    return EStopButton(DriveConfig(estop_pin=pin, estop_debounce=debounce, **drive), estop, gpio=gpio)
+
+
+def test_a_button_press_latches_and_release_waits_for_the_button(client, robot, gpio):
+    button = _button(gpio, robot.estop)
+    try:
+        assert ("setup", BUTTON, gpio.IN, gpio.PUD_UP) in gpio.calls  # pull-up, so pressed = low
+        gpio.drive_input(BUTTON, LOW)
+        wait_for(lambda: robot.estop.latched, message="the press to latch the e-stop")
+        assert client.get("/status").get_json()["estop"]["source"] == "button"
+        _assert_refused_with_the_way_out(client.post("/teleop", json={"linear": 0.1}))
+
+        r = client.post("/estop/release")
+        assert r.status_code == 409 and r.get_json()["error"] == "estop_button_pressed"
+        assert "still pressed" in r.get_json()["message"] and robot.estop.latched
+        gpio.drive_input(BUTTON, HIGH)
+        assert robot.estop.latched  # letting go of the button does not release the latch
+        assert client.post("/estop/release").status_code == 200 and not robot.estop.latched
+    finally:
+        button.close()
+    button.close()
+    assert BUTTON in gpio.cleaned and BUTTON not in gpio.detects
+
+
+def test_a_glitch_shorter_than_the_debounce_does_not_latch(gpio):
+    estop = EStop()
+    button = _button(gpio, estop, debounce=0.2)
+    try:
+        gpio.drive_input(BUTTON, LOW)  # a spike from the motor wires: low for a moment
+        gpio.drive_input(BUTTON, HIGH)
+        time.sleep(0.6)  # the callback has looked again after its debounce
+        assert not estop.latched
+        gpio.drive_input(BUTTON, LOW)  # a real press: held
+        wait_for(lambda: estop.latched, message="the held press to latch")
+    finally:
+        button.close()
+
+
+def test_a_button_held_at_start_up_latches_at_once(gpio):
+    estop = EStop()
+    gpio.drive_input(BUTTON, LOW)  # held down before the server starts
+    button = _button(gpio, estop)
+    try:
+        assert estop.status()["latched"] and estop.status()["source"] == "button"
+    finally:
+        button.close()
+
+
+def test_the_button_pin_is_checked(tmp_path, gpio):
+    from flask_move_server import config
+    from flask_move_server.errors import ConfigError
+
+    path = tmp_path / "robot.yaml"
+    path.write_text("drive:\n  estop_pin: 40\n")
+    with pytest.raises(ConfigError) as err:
+        config.load(str(path))
+    assert err.value.key == "drive.estop_pin" and "0 to 27" in err.value.reason
+    with pytest.raises(ConfigError) as err:
+        _button(gpio, EStop(), backend="l298n", pin=17)
+    assert err.value.key == "drive.estop_pin" and "drive.l298n.left[0].in1" in err.value.reason
+    assert gpio.calls == []  # nothing touched
 
 
 def test_the_server_process_wires_the_latch_to_the_motors(ros_master, tmp_path):
