@@ -41,13 +41,17 @@ def driven(robot_config, ros_node, unique_name):
     drive.close()
 
 
-def _drive_for(client, seconds, linear=0.4):
-    """Hold /teleop like a joystick page (every 0.1 s); the time of the last request's answer."""
-    end = time.monotonic() + seconds
-    while time.monotonic() < end:
-        assert client.post("/teleop", json={"linear": linear}).status_code == 200
+def _drive_up_to(robot, client, speed=0.1):
+    """Hold /teleop like a joystick page (every 0.1 s) until the base ramped up to ``speed``.
+
+    Returns when the last /teleop was answered; at ACCEL, a ramp back down takes speed / ACCEL s.
+    """
+    deadline = time.monotonic() + 30
+    while robot.drive.motion.velocity[0] < speed:
+        assert time.monotonic() < deadline, "the base never reached {} m/s".format(speed)
+        assert client.post("/teleop", json={"linear": 0.4}).status_code == 200
         time.sleep(0.1)
-    assert client.post("/teleop", json={"linear": linear}).status_code == 200
+    assert client.post("/teleop", json={"linear": 0.4}).status_code == 200
     return time.monotonic()
 
 
@@ -59,12 +63,10 @@ def test_deadman_expiry_stops_the_motors_at_once(driven):
     robot, client = driven
     motors = robot.drive.backend
     start = time.monotonic()
-    last = _drive_for(client, 1.5)
-    speed = robot.drive.motion.velocity[0]
-    assert speed >= 0.1, "the ramp got the robot going (a ramp down would take {:.1f} s)".format(speed / ACCEL)
+    last = _drive_up_to(robot, client)
     stopped = wait_for(lambda: motors.applied()[:2] == (0.0, 0.0) and motors.applied(), timeout=10,
                        message="the motors to stop after the deadman")
-    assert stopped[2] - last < DEADMAN + 0.5  # a ramp from `speed` would take >= 1 s more
+    assert stopped[2] - last < DEADMAN + 0.5  # a ramp down from 0.1 m/s would take 1 s more
     moving = [(t, left) for t, left in _after(motors.history, start) if t < stopped[2]]
     assert moving[-1][1] == max(left for _, left in moving), "full speed straight to 0, no ramp steps"
     assert robot.drive.status()["watchdog_tripped"] is False and not robot.teleop_control.status()["active"]
@@ -73,7 +75,7 @@ def test_deadman_expiry_stops_the_motors_at_once(driven):
 def test_a_zero_teleop_command_still_ramps_down(driven):
     robot, client = driven
     motors = robot.drive.backend
-    _drive_for(client, 1.5)
+    _drive_up_to(robot, client)
     peak = motors.applied()[0]
     zero_sent = time.monotonic()
     assert client.post("/teleop", json={"linear": 0.0}).status_code == 200
@@ -114,7 +116,9 @@ def test_status_right_after_stop_is_not_active_and_teleop_does_not_cancel_again(
     assert client.post("/stop").get_json()["canceled_goal"] is True
 
     state = client.get("/status").get_json()["navigation"]["state"]
-    assert state == ("canceling" if interface == "action" else "canceled")
+    assert state in ("canceling", "canceled")  # action: canceling until move_base's word (or just after it)
+    if interface == "topic":
+        assert state == "canceled"  # no word comes in topic mode
     r = client.post("/teleop", json={"linear": 0.1})
     assert r.status_code == 200 and "canceled_goal" not in r.get_json()
     assert client.post("/stop").get_json()["canceled_goal"] is False
