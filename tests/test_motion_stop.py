@@ -129,6 +129,17 @@ def test_status_right_after_stop_is_not_active_and_teleop_does_not_cancel_again(
     assert len(cancels.snapshot()) == 1
 
 
+def test_a_cancel_move_base_never_confirms_stays_canceling_and_says_why(client, ready_robot, move_base):
+    ready_robot.navigator.cancel_patience = 0.5
+    client.post("/goto", json={"x": HOLD_X, "y": 0})
+    wait_for(lambda: move_base.goals, message="move_base to take the goal")
+    move_base.ignore_cancels = True  # a hung move_base: no word on the cancel will come
+    assert client.post("/stop").get_json()["canceled_goal"] is True
+    nav = wait_for(lambda: client.get("/status").get_json()["navigation"]["message"]
+                   and client.get("/status").get_json()["navigation"], message="the question in /status")
+    assert nav["state"] == "canceling" and "has not confirmed the cancel" in nav["message"]
+
+
 def test_losing_the_master_ends_a_goal_under_way(tmp_path):
     """The master dies mid-goal: /status says aborted (not active forever) and a waiting /goto answers."""
     port = free_port()

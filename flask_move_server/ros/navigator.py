@@ -44,6 +44,8 @@ _FROM_STATUS = {
 class Navigator:
     """Sends the robot to goals and tracks the current one."""
 
+    cancel_patience = 5.0  # s without move_base's word on a cancel before /status asks whether it runs
+
     def __init__(self, config, frames, node, pose_tracker):
         self._config = config
         self._frame = frames.map
@@ -55,6 +57,7 @@ class Navigator:
         self._goal = None
         self._feedback_pose = None
         self._message = None
+        self._cancel_sent = None
         self._client = None
         self._goal_pub = None
         self._cancel_pub = None
@@ -100,6 +103,7 @@ class Navigator:
                 return False
             seq = self._seq
             self._state = CANCELING if self._client is not None else CANCELED
+            self._cancel_sent = time.monotonic()
             self._cond.notify_all()
         self._send_cancel()
         log.info("goal %d: cancel requested", seq)
@@ -132,6 +136,7 @@ class Navigator:
         """The navigation part of ``/status``; ``reading``: the pose to measure from (else looked up)."""
         with self._cond:
             goal, state, seq, message = self._goal, self._state, self._seq, self._message
+            message = message or self._unconfirmed_cancel()
         return {
             "state": state,
             "message": message,
@@ -141,6 +146,13 @@ class Navigator:
             "distance_remaining": self._distance_remaining(goal, state, reading),
             "interface": self._config.goal_interface,
         }
+
+    def _unconfirmed_cancel(self):
+        """Why a goal is still ``canceling`` after ``cancel_patience`` (lock held), or None."""
+        if self._state != CANCELING or time.monotonic() - self._cancel_sent < self.cancel_patience:
+            return None
+        return ("move_base has not confirmed the cancel for {:.0f} s: is it still running? The goal stays "
+                "'canceling' until it answers or a new goal replaces it.".format(time.monotonic() - self._cancel_sent))
 
     def server_ready(self):
         """True when goals can be sent now (move_base answers, or topic mode)."""
