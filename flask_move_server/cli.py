@@ -178,6 +178,7 @@ class Server:
 
     def _build_robot(self, stack):
         from flask_move_server.drive import make_drive
+        from flask_move_server.drive.estop import EStop
         from flask_move_server.ros.node import RosNode
 
         cfg = self.config
@@ -185,17 +186,27 @@ class Server:
             self._own_master(stack)
         node = RosNode(cfg.ros.node_name, cfg.ros.master_check_period, cfg.ros.exit_on_new_master, self.fatal)
         stack.callback(node.close)
-        drive = make_drive(cfg.drive, node, cfg.ros.frames, source=cfg.source)
+        estop = EStop()
+        drive = make_drive(cfg.drive, node, cfg.ros.frames, source=cfg.source, estop=estop)
         stack.callback(drive.close)  # SIGTERM → ExitStack → motors stopped, pins released
         if cfg.sim.enabled:
             from flask_move_server.sim.runner import Simulation
 
             stack.callback(Simulation(cfg, node, drive).close)
-        robot = build_robot(cfg, node, drive)
+        robot = build_robot(cfg, node, drive, estop)
         stack.callback(robot.close)
+        self._watch_estop_button(stack, estop)
         self._node = node
         self.robot = robot
         return robot
+
+    def _watch_estop_button(self, stack, estop):
+        """``drive.estop_pin``: a press of the physical e-stop button latches ``estop``."""
+        if self.config.drive.estop_pin is None:
+            return
+        from flask_move_server.drive.estop_button import EStopButton
+
+        stack.callback(EStopButton(self.config.drive, estop, source=self.config.source).close)
 
     def _own_master(self, stack):
         """``--sim``: start a ROS master when none answers at ROS_MASTER_URI; it is stopped last."""
@@ -228,8 +239,8 @@ class Server:
         self._stack.close()
 
 
-def build_robot(config, node, drive):
-    """The Robot facade over ``node``: pose tracker, navigator, teleop, ``drive``."""
+def build_robot(config, node, drive, estop=None):
+    """The Robot facade over ``node``: pose tracker, navigator, teleop, ``drive``, the e-stop latch."""
     from flask_move_server.robot import Robot
     from flask_move_server.ros.navigator import Navigator
     from flask_move_server.ros.pose import PoseTracker
@@ -238,7 +249,7 @@ def build_robot(config, node, drive):
     pose = PoseTracker(config.ros.frames, config.navigation.amcl_pose_topic, node, config.navigation.pose_max_age)
     navigator = Navigator(config.navigation, config.ros.frames, node, pose)
     teleop = Teleop(config.teleop, node)
-    return Robot(node, navigator, pose, teleop, drive)
+    return Robot(node, navigator, pose, teleop, drive, estop)
 
 
 def _http_server(app, server_config):

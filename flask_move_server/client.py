@@ -23,6 +23,7 @@ _GOAL_ENDINGS = {
     "aborted": (ExitStatus.ABORTED, "move_base aborted the goal to {}: no path was found or the robot got stuck."),
     "canceled": (ExitStatus.CANCELED, "the goal to {} was canceled before the robot arrived."),
     "rejected": (ExitStatus.REJECTED, "move_base rejected the goal to {}: is it inside the map?"),
+    "canceling": (ExitStatus.CANCELED, "the goal to {} was canceled before the robot arrived."),
     "idle": (ExitStatus.CANCELED, "the goal to {} is gone (the server restarted?)."),
 }
 
@@ -107,6 +108,19 @@ def cmd_stop(client, args):
     return ExitStatus.OK
 
 
+def cmd_estop(client, args):
+    """Latch the e-stop (everything stops; goals and teleop refused), or release it."""
+    if args.action == "release":
+        answer = client.post("/estop/release") or {}
+        _say("e-stop released: goals and teleop are accepted again." if answer.get("released")
+             else "the e-stop was not latched.")
+        return ExitStatus.OK
+    client.post("/estop")
+    _say("e-stop latched: the robot is stopped and refuses goals and teleop until "
+         "'robotctl estop release'.")
+    return ExitStatus.OK
+
+
 def cmd_teleop(client, args):
     """One velocity command, held for the server's deadman time."""
     answer = client.post("/teleop", {"linear": args.linear, "angular": args.angular})
@@ -153,6 +167,8 @@ def describe_status(data, url):
     motors = data.get("motors") or {}
     lines.append("motors:     {} left {:+.2f} right {:+.2f}".format(
         motors.get("backend", "?"), motors.get("left") or 0.0, motors.get("right") or 0.0))
+    if "estop" in data:
+        lines.append("e-stop:     " + _describe_estop(data["estop"] or {}))
     problem = (data.get("waypoints") or {}).get("problem")
     if problem:
         lines.append("waypoints:  PROBLEM: " + problem)
@@ -168,6 +184,13 @@ def _describe_navigation(nav):
     if state == "active" and nav.get("distance_remaining") is not None:
         text += ", {:.2f} m to go".format(nav["distance_remaining"])
     return text
+
+
+def _describe_estop(estop):
+    if not estop.get("latched"):
+        return "off"
+    return "LATCHED by {} since {} ('robotctl estop release' lifts it)".format(
+        estop.get("source") or "?", estop.get("since") or "?")
 
 
 def _describe_teleop(teleop):
@@ -283,6 +306,9 @@ def build_parser():
                    help="with --wait: give up waiting after S seconds (exit 12)")
     p.set_defaults(run=cmd_goto)
     sub.add_parser("stop", help="cancel the goal and stop").set_defaults(run=cmd_stop)
+    p = sub.add_parser("estop", help="latch the e-stop ('estop release' lifts it)")
+    p.add_argument("action", nargs="?", choices=["release"], help="release the latched e-stop")
+    p.set_defaults(run=cmd_estop)
     p = sub.add_parser("status", help="where the robot is and what it does")
     p.add_argument("--json", action="store_true", help="the raw JSON of GET /status")
     p.set_defaults(run=cmd_status)

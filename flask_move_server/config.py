@@ -151,6 +151,10 @@ def _gpio(value):
     return None if value is None or 0 <= value <= 27 else "must be a BCM GPIO number, 0 to 27"
 
 
+def _debounce(value):
+    return None if 0 <= value <= 1 else "must be 0 to 1 seconds"
+
+
 @dataclass
 class MotorChannelConfig:
     """One L298N channel (a motor, or two in parallel): BCM pins and direction."""
@@ -212,6 +216,8 @@ class DriveConfig:
     max_angular_accel: float = _check(_non_negative, default=4.0)
     l298n: L298nConfig = field(default_factory=L298nConfig)
     serial: SerialDriveConfig = field(default_factory=SerialDriveConfig)
+    estop_pin: Optional[int] = _check(_gpio, default=None)
+    estop_debounce: float = _check(_debounce, default=0.02)
 
 
 @dataclass

@@ -138,6 +138,18 @@ class DriveError(MoveServerError, RuntimeError):
     code = "drive_error"
 
 
+class EStopLatched(MoveServerError, RuntimeError):
+    """The e-stop is latched: goals and teleop are refused until it is released."""
+
+    code = "estop_latched"
+
+
+class EStopHeld(MoveServerError, RuntimeError):
+    """The e-stop cannot be released: its button is still pressed."""
+
+    code = "estop_button_pressed"
+
+
 class ClientError(MoveServerError, RuntimeError):
     """A robotctl or record-waypoints request failed; ``exit_status`` says how."""
 

@@ -3,26 +3,34 @@
 The Flask app knows this class, not rospy: the same routes run against the
 real robot and the simulated one. It composes the parts ``cli`` built and adds
 the rules that span them (teleop cancels a goal, a goal ends teleop, stop ends
-both and zeroes the velocity).
+both and zeroes the velocity, the teleop deadman halts the motors at once, the
+e-stop latch stops everything and refuses goals and teleop until released).
 """
 
+from flask_move_server.drive.estop import EStop
 from flask_move_server.errors import NavigationFailed
 
 
 class Robot:
     """One robot: navigation, teleop, pose, motors, ROS health."""
 
-    def __init__(self, node, navigator, pose, teleop, drive):
+    def __init__(self, node, navigator, pose, teleop, drive, estop=None):
         self.node = node
         self.navigator = navigator
         self.pose = pose
         self.teleop_control = teleop
         self.drive = drive
+        self.estop = estop if estop is not None else EStop()
+        # A zero Twist is ramped down by the base; a deadman that runs out must stop at once.
+        teleop.on_expire(drive.stop)
+        self.estop.when_engaged(lambda source: self.stop())
 
     def goto(self, goal):
         """Send the robot to ``goal``; returns the goal's sequence number."""
+        self.estop.refuse_motion("goals are")
         seq = self.navigator.goto(goal)
         self.teleop_control.stop()
+        self._unless_latched_meanwhile()
         return seq
 
     def wait(self, seq, timeout):
@@ -32,7 +40,8 @@ class Robot:
             return True
         if state == "active":
             return False
-        raise NavigationFailed(state, _failure_message(state, self.navigator.status()))
+        nav = self.navigator.status()
+        raise NavigationFailed(state, nav.get("message") or _failure_message(state, nav))
 
     def stop(self):
         """Cancel the goal, end teleop, command zero velocity."""
@@ -43,11 +52,19 @@ class Robot:
 
     def teleop(self, linear, angular):
         """Drive at the given velocity for the deadman time; cancels a goal under way."""
+        self.estop.refuse_motion("teleop is")
         result = self.teleop_control.command(linear, angular)
         if self.navigator.active:
             self.navigator.cancel()
             result["canceled_goal"] = True
+        self._unless_latched_meanwhile()
         return result
+
+    def _unless_latched_meanwhile(self):
+        """An e-stop engaged while a goal or command was on its way: stop that one too, and refuse."""
+        if self.estop.latched:
+            self.stop()
+            self.estop.refuse_motion("goals and teleop are")
 
     def current_pose(self):
         """The robot's pose in the map frame now; NoPose when unknown or stale."""
@@ -64,6 +81,7 @@ class Robot:
             "navigation": self.navigator.status(reading),
             "teleop": self.teleop_control.status(),
             "motors": self.drive.status(),
+            "estop": self.estop.status(),
             "ros": {"state": self.node.state, "master_uri": self.node.master_uri, "node": self.node.name},
         }
 
@@ -85,7 +103,7 @@ class Robot:
 
 def _failure_message(state, nav):
     target = repr(nav["target"]) if nav["target"] else "the goal"
-    if state == "canceled":
+    if state in ("canceled", "canceling"):
         return "The goal to {} was canceled before the robot arrived.".format(target)
     if state == "rejected":
         return "move_base rejected the goal to {}: is it inside the map?".format(target)

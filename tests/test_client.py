@@ -198,6 +198,25 @@ def test_stop_and_teleop(live, capsys):
     assert not live.robot.teleop_control.status()["active"]
 
 
+def test_estop_latches_until_estop_release(live, capsys):
+    assert robotctl(live, "estop") == 0
+    assert "e-stop latched" in capsys.readouterr().out
+    assert live.calls[-1][:2] == ("POST", "/estop") and live.robot.estop.latched
+    assert robotctl(live, "teleop", "0.1", "0") == ExitStatus.ERROR
+    err = capsys.readouterr().err
+    assert "e-stop is latched" in err and "robotctl estop release" in err and len(err.splitlines()) == 1
+    assert robotctl(live, "status") == 0
+    assert "e-stop:     LATCHED by api since " in capsys.readouterr().out
+    assert robotctl(live, "estop", "release") == 0
+    assert capsys.readouterr().out == "e-stop released: goals and teleop are accepted again.\n"
+    assert robotctl(live, "estop", "release") == 0
+    assert capsys.readouterr().out == "the e-stop was not latched.\n"
+    assert robotctl(live, "teleop", "0.1", "0") == 0
+    assert robotctl(live, "status") == 0
+    assert "e-stop:     off" in capsys.readouterr().out.splitlines()
+    assert robotctl(live, "estop", "now") == ExitStatus.USAGE
+
+
 def test_status_summary_and_json(live, capsys):
     assert robotctl(live, "goto", "forever") == 0
     capsys.readouterr()

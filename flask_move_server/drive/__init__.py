@@ -33,10 +33,11 @@ def check_config(config, source="(config)"):
             config.min_duty, config.max_duty))
 
 
-def make_drive(config, node, frames, source="(config)", backend=None):
+def make_drive(config, node, frames, source="(config)", backend=None, estop=None):
     """The drive for ``config`` (a DriveConfig): NoDrive or a running BaseController.
 
-    ``backend`` overrides the one named in the config (tests, the simulation).
+    ``backend`` overrides the one named in the config (tests, the simulation);
+    ``estop``: the e-stop latch (drive/estop.py) under which every command is refused.
     Raises ConfigError for bad settings and DriveError when the hardware
     library is missing; on failure nothing is left holding a pin or a port.
     """
@@ -48,7 +49,7 @@ def make_drive(config, node, frames, source="(config)", backend=None):
 
     motors = backend if backend is not None else create(config.backend, config, source)
     try:
-        return BaseController(config, node, motors, frames)
+        return BaseController(config, node, motors, frames, estop=estop)
     except Exception:
         motors.close()
         raise

@@ -10,6 +10,9 @@ Three event sources, each on its own thread, sharing one lock:
   command's deadline and stops the motors at once (no ramp) when no command
   came for ``cmd_vel_timeout`` seconds. Losing the ROS master stops them too.
 
+While the e-stop latch (:mod:`.estop`) is engaged every command is refused,
+whoever sends it (teleop, move_base, a joystick node).
+
 Idle threads block on a condition: no busy loop (Pi 4 CPU).
 """
 
@@ -29,8 +32,9 @@ log = logging.getLogger(__name__)
 class BaseController:
     """Drives one motor backend from velocity commands and reports odometry."""
 
-    def __init__(self, config, node, backend, frames, clock=time.monotonic):
+    def __init__(self, config, node, backend, frames, clock=time.monotonic, estop=None):
         self.config = config
+        self.estop = estop
         self.node = node
         self.backend = backend
         self.frames = frames
@@ -44,6 +48,7 @@ class BaseController:
         self._tripped = False
         self._fault = None
         self._ignored = 0
+        self._held = 0
         self._closed = False
         self._ros = None
         self._threads = [
@@ -54,12 +59,21 @@ class BaseController:
             thread.start()
         node.when_ready(self._setup_ros)
         node.when_lost(self._master_lost)
+        if estop is not None:
+            estop.when_engaged(self._estop_engaged)
 
     # commands -------------------------------------------------------------------
 
     def command(self, linear, angular):
-        """Drive at (linear m/s, angular rad/s), clamped; NaN/Inf are ignored. True when applied."""
+        """Drive at (linear m/s, angular rad/s), clamped; NaN/Inf are ignored. True when applied.
+
+        Refused (False) while the e-stop is latched: checked under the lock, so a command
+        racing an engage either lands before the e-stop's halt or not at all.
+        """
         with self._cond:
+            if self.estop is not None and self.estop.latched:
+                self._held += 1
+                return False
             if self._closed or not self.motion.command(linear, angular):
                 self._ignored += 1
                 return False
@@ -73,7 +87,7 @@ class BaseController:
     def _on_cmd_vel(self, msg):
         if not self.node.connected:
             return  # master lost: stay stopped until it answers again
-        if not self.command(msg.linear.x, msg.angular.z):
+        if not self.command(msg.linear.x, msg.angular.z) and not (self.estop and self.estop.latched):
             log.warning("ignored a /cmd_vel that is not finite: linear %s, angular %s", msg.linear.x, msg.angular.z)
 
     def stop(self, reason=None):
@@ -89,6 +103,10 @@ class BaseController:
 
     def _master_lost(self):
         self.stop("the ROS master stopped answering")
+
+    def _estop_engaged(self, source):
+        """The latch halts the motors here, first and directly: no ROS on the way."""
+        self.stop()
 
     # the shared arithmetic (called with the lock held) -----------------------------
 
@@ -208,6 +226,7 @@ class BaseController:
                 "connected": connected,
                 "error": self._fault or self.backend.error,
                 "ignored_commands": self._ignored,
+                "estop_refused_commands": self._held,
                 "odom": self.odometry.as_dict(),
             }
 

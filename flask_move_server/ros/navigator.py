@@ -1,8 +1,13 @@
 """Goals to move_base, through actionlib (or the plain topic), and how they go.
 
-The state of the current goal is one of ``idle``, ``active``, ``succeeded``,
-``aborted``, ``canceled``, ``rejected``. Each goal gets a sequence number, so a
-late callback of a replaced goal never overwrites the state of the new one.
+The state of the current goal is one of ``idle``, ``active``, ``canceling``,
+``succeeded``, ``aborted``, ``canceled``, ``rejected``. Each goal gets a
+sequence number, so a late callback of a replaced goal never overwrites the
+state of the new one. ``canceling``: a cancel was sent and move_base has not
+confirmed it yet (action mode; topic mode has no confirmation, so ``canceled``
+at once). The first end of a goal is its end: when the ROS master stops
+answering, a goal under way becomes ``aborted`` with a message (its cancel is
+still sent), and a later word from move_base about it changes nothing.
 """
 
 import logging
@@ -20,10 +25,11 @@ from flask_move_server.geometry import Pose2D, quaternion_to_yaw, yaw_to_quatern
 
 log = logging.getLogger(__name__)
 
-IDLE, ACTIVE, SUCCEEDED, ABORTED, CANCELED, REJECTED = (
-    "idle", "active", "succeeded", "aborted", "canceled", "rejected",
+IDLE, ACTIVE, CANCELING, SUCCEEDED, ABORTED, CANCELED, REJECTED = (
+    "idle", "active", "canceling", "succeeded", "aborted", "canceled", "rejected",
 )
 TERMINAL = (SUCCEEDED, ABORTED, CANCELED, REJECTED)
+UNDER_WAY = (ACTIVE, CANCELING)
 
 _FROM_STATUS = {
     GoalStatus.SUCCEEDED: SUCCEEDED,
@@ -38,6 +44,8 @@ _FROM_STATUS = {
 class Navigator:
     """Sends the robot to goals and tracks the current one."""
 
+    cancel_patience = 5.0  # s without move_base's word on a cancel before /status asks whether it runs
+
     def __init__(self, config, frames, node, pose_tracker):
         self._config = config
         self._frame = frames.map
@@ -48,10 +56,13 @@ class Navigator:
         self._state = IDLE
         self._goal = None
         self._feedback_pose = None
+        self._message = None
+        self._cancel_sent = None
         self._client = None
         self._goal_pub = None
         self._cancel_pub = None
         node.when_ready(self._setup)
+        node.when_lost(self._master_lost)
 
     def _setup(self):
         if self._config.goal_interface == "action":
@@ -68,7 +79,7 @@ class Navigator:
         with self._cond:
             self._seq += 1
             seq = self._seq
-            self._goal, self._state, self._feedback_pose = goal, ACTIVE, None
+            self._goal, self._state, self._feedback_pose, self._message = goal, ACTIVE, None, None
             self._cond.notify_all()
         if self._client is not None:
             self._client.send_goal(
@@ -82,18 +93,28 @@ class Navigator:
         return seq
 
     def cancel(self):
-        """Cancel the goal under way, if any; True when one was."""
+        """Cancel the goal under way, if any; True when one was (not when its cancel is already sent).
+
+        Action mode: ``canceling`` until move_base confirms (preempted or recalled);
+        topic mode: ``canceled`` at once.
+        """
         with self._cond:
             if self._state != ACTIVE:
                 return False
             seq = self._seq
-        if self._client is not None:
-            self._client.cancel_goal()
-        elif self._cancel_pub is not None:
-            self._cancel_pub.publish(GoalID())
-            self._finish(seq, CANCELED)
+            self._state = CANCELING if self._client is not None else CANCELED
+            self._cancel_sent = time.monotonic()
+            self._cond.notify_all()
+        self._send_cancel()
         log.info("goal %d: cancel requested", seq)
         return True
+
+    def _send_cancel(self):
+        client, cancel_pub = self._client, self._cancel_pub
+        if client is not None:
+            client.cancel_goal()
+        elif cancel_pub is not None:
+            cancel_pub.publish(GoalID())
 
     def wait(self, seq, timeout):
         """Block until goal ``seq`` ends or ``timeout`` passes; its state then."""
@@ -108,20 +129,30 @@ class Navigator:
 
     @property
     def active(self):
+        """True while the goal is under way and not yet asked to cancel."""
         return self._state == ACTIVE
 
     def status(self, reading=None):
         """The navigation part of ``/status``; ``reading``: the pose to measure from (else looked up)."""
         with self._cond:
-            goal, state, seq = self._goal, self._state, self._seq
+            goal, state, seq, message = self._goal, self._state, self._seq, self._message
+            message = message or self._unconfirmed_cancel()
         return {
             "state": state,
+            "message": message,
             "target": goal.target if goal else None,
             "goal": goal.pose.as_dict() if goal else None,
             "goal_id": seq or None,
             "distance_remaining": self._distance_remaining(goal, state, reading),
             "interface": self._config.goal_interface,
         }
+
+    def _unconfirmed_cancel(self):
+        """Why a goal is still ``canceling`` after ``cancel_patience`` (lock held), or None."""
+        if self._state != CANCELING or time.monotonic() - self._cancel_sent < self.cancel_patience:
+            return None
+        return ("move_base has not confirmed the cancel for {:.0f} s: is it still running? The goal stays "
+                "'canceling' until it answers or a new goal replaces it.".format(time.monotonic() - self._cancel_sent))
 
     def server_ready(self):
         """True when goals can be sent now (move_base answers, or topic mode)."""
@@ -167,9 +198,24 @@ class Navigator:
 
     def _finish(self, seq, state):
         with self._cond:
-            if seq == self._seq:
+            if seq == self._seq and self._state in UNDER_WAY:  # the first end of a goal is its end
                 self._state = state
                 self._cond.notify_all()
+
+    def _master_lost(self):
+        """No master: move_base's word may never come, so a goal under way ends ``aborted`` now."""
+        with self._cond:
+            if self._state not in UNDER_WAY:
+                return
+            seq, self._state = self._seq, ABORTED
+            self._message = ("The ROS master stopped answering, so the goal was given up (and a cancel sent "
+                             "to move_base); send it again once /health says \"ros\": \"connected\".")
+            self._cond.notify_all()
+        log.error("goal %d: aborted, the ROS master stopped answering", seq)
+        try:
+            self._send_cancel()  # over the open connection: move_base must not resume it later
+        except Exception as exc:
+            log.warning("goal %d: could not send its cancel: %s", seq, exc)
 
     def _feedback(self, seq, feedback):
         p = feedback.base_position.pose

@@ -2,9 +2,12 @@
 
 A command holds for ``deadman`` seconds: it is re-published at ``rate`` Hz
 while it holds, and one zero Twist is published when it expires without a new
-command, so the base stops even if its own watchdog is slower.
+command, so the base stops even if its own watchdog is slower. A zero Twist
+is ramped down by the base controller like any command, so the expiry also
+calls the ``on_expire`` callbacks (the Robot: halt the motors at once).
 """
 
+import logging
 import threading
 import time
 
@@ -12,6 +15,8 @@ import rospy
 from geometry_msgs.msg import Twist
 
 from flask_move_server.errors import RosUnavailable
+
+log = logging.getLogger(__name__)
 
 
 def clamp(value, limit):
@@ -31,7 +36,12 @@ class Teleop:
         self._pub = None
         self._closed = False
         self._thread = None
+        self._expire_callbacks = []
         node.when_ready(self._setup)
+
+    def on_expire(self, callback):
+        """Call ``callback()`` when a command runs out without a new one (not on a zero command)."""
+        self._expire_callbacks.append(callback)
 
     def _setup(self):
         self._pub = rospy.Publisher(self._config.topic, Twist, queue_size=1, tcp_nodelay=True)
@@ -95,13 +105,26 @@ class Teleop:
                     continue
                 now = time.monotonic()
                 if now >= self._deadline:
-                    self._deadline = None
-                    self._linear = self._angular = 0.0
-                    self._pub.publish(Twist())
-                elif now >= self._last_publish + period:
+                    self._expire()
+                    continue
+                wake = self._last_publish + period
+                if wake > self._deadline - period / 2:  # a re-publish this late could reach the base after the halt
+                    wake = self._deadline
+                if now >= wake:
                     self._publish(self._linear, self._angular)
                 else:
-                    self._cond.wait(min(self._last_publish + period, self._deadline) - now)
+                    self._cond.wait(wake - now)
+
+    def _expire(self):
+        """The deadman ran out (lock held, so a new command waits): halt, then one zero Twist."""
+        self._deadline = None
+        self._linear = self._angular = 0.0
+        for callback in self._expire_callbacks:
+            try:
+                callback()
+            except Exception:
+                log.exception("teleop expiry callback %r failed", callback)
+        self._pub.publish(Twist())
 
     def _publish(self, linear, angular):
         self._last_publish = time.monotonic()

@@ -7,6 +7,7 @@ module global, so several apps (tests) can live in one process.
 from flask import Blueprint, Flask, Response, send_from_directory
 
 from flask_move_server.web import auth, errors, guard
+from flask_move_server.web.estop import estop
 from flask_move_server.web.routes import WaypointNameConverter, api
 
 
@@ -32,6 +33,7 @@ def create_app(config, robot, store, token=None):
     guard.init_app(app, config)  # before auth: it protects robots without a token too
     auth.init_app(app, token)
     app.register_blueprint(api)
+    app.register_blueprint(estop)
     if config.server.static:
         _add_page(app)
     return app

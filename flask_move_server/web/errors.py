@@ -26,6 +26,8 @@ STATUS = (
     (errors.NoPose, 409),
     (errors.WaypointsLocked, 503),
     (errors.WaypointFileError, 409),
+    (errors.EStopLatched, 409),
+    (errors.EStopHeld, 409),
     (errors.RosUnavailable, 503),
     (errors.NavigationUnavailable, 503),
     (errors.DriveError, 503),

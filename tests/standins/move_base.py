@@ -6,6 +6,8 @@ Used by the server-core tests to drive each goal outcome; the simulation
 - ``x == ABORT_X``: aborted;  ``x == REJECT_X``: rejected;
 - ``x == HOLD_X``: stays active (feedback keeps coming) until canceled or replaced;
 - anything else: succeeds after ``delay`` seconds, with feedback on the way.
+
+``ignore_cancels = True`` makes it a hung move_base: a cancel is heard but never confirmed.
 """
 
 import threading
@@ -24,6 +26,7 @@ class ScriptedMoveBase:
         self.delay = delay
         self.goals = []  # every goal received, with the monotonic time it arrived
         self._stopping = False
+        self.ignore_cancels = False
         self._server = actionlib.SimpleActionServer(name, MoveBaseAction, execute_cb=self._execute, auto_start=False)
         self._server.start()
         self._lock = threading.Lock()
@@ -41,7 +44,8 @@ class ScriptedMoveBase:
             return
         deadline = time.monotonic() + (3600 if x == HOLD_X else self.delay)
         while time.monotonic() < deadline:
-            if self._server.is_preempt_requested() or rospy.is_shutdown() or self._stopping:
+            preempt = self._server.is_preempt_requested() and not self.ignore_cancels
+            if preempt or rospy.is_shutdown() or self._stopping:
                 self._server.set_preempted()
                 return
             feedback = MoveBaseFeedback()
