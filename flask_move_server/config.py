@@ -77,6 +77,9 @@ class ServerConfig:
     threads: int = _check(_positive, default=6)
     max_body_bytes: int = _check(_positive, default=16384)
     static: bool = True
+    connection_limit: int = _check(_positive, default=100)
+    request_timeout: float = _check(_positive, default=10.0)
+    channel_timeout: float = _check(_positive, default=30.0)
 
 
 @dataclass

@@ -6,7 +6,9 @@ the rules that span them (teleop cancels a goal, a goal ends teleop, stop ends
 both and zeroes the velocity).
 """
 
-from flask_move_server.errors import NavigationFailed
+from flask_move_server.errors import NavigationFailed, ShuttingDown
+
+_SHUTTING_DOWN = "The server is shutting down: the robot was stopped. Send the command again once it is back."
 
 
 class Robot:
@@ -18,16 +20,22 @@ class Robot:
         self.pose = pose
         self.teleop_control = teleop
         self.drive = drive
+        self.shutting_down = False
 
     def goto(self, goal):
         """Send the robot to ``goal``; returns the goal's sequence number."""
+        self._check_running()
         seq = self.navigator.goto(goal)
         self.teleop_control.stop()
+        if self.shutting_down:  # the signal came while the goal was being sent
+            self.stop()
+            self._check_running()
         return seq
 
     def wait(self, seq, timeout):
         """Wait up to ``timeout`` s for goal ``seq``; True when reached, False when still under way."""
         state = self.navigator.wait(seq, timeout)
+        self._check_running()
         if state == "succeeded":
             return True
         if state == "active":
@@ -41,8 +49,19 @@ class Robot:
         self.drive.stop()
         return canceled
 
+    def shutdown(self):
+        """The server is stopping: stop first, refuse motion, answer every waiting /goto (ShuttingDown)."""
+        self.shutting_down = True
+        self.stop()
+        self.navigator.release_waiters()
+
+    def _check_running(self):
+        if self.shutting_down:
+            raise ShuttingDown(_SHUTTING_DOWN)
+
     def teleop(self, linear, angular):
         """Drive at the given velocity for the deadman time; cancels a goal under way."""
+        self._check_running()
         result = self.teleop_control.command(linear, angular)
         if self.navigator.active:
             self.navigator.cancel()

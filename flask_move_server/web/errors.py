@@ -26,6 +26,7 @@ STATUS = (
     (errors.RosUnavailable, 503),
     (errors.NavigationUnavailable, 503),
     (errors.DriveError, 503),
+    (errors.ShuttingDown, 503),
 )
 
 _HTTP_CODES = {
