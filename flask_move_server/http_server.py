@@ -151,21 +151,25 @@ class RobotWSGIServer(TcpWSGIServer):
         self.make_room()
 
     def make_room(self):
-        """Over ``connection_limit``: close the connections that have waited longest for nothing."""
-        excess = len(self.active_channels) - self.adj.connection_limit
+        """Over ``connection_limit``: close the connections that have waited longest for nothing.
+
+        Closed as waitress closes: ``will_close``, acted on by the loop's next pass (closing a
+        socket while the loop gathers its select() lists would hand select() a closed descriptor).
+        """
+        channels = list(self.active_channels.values())
+        excess = len(channels) - sum(1 for c in channels if c.will_close) - self.adj.connection_limit
         if excess <= 0:
             return
-        waiting = [(c.waiting_since(), id(c), c) for c in list(self.active_channels.values())]
-        waiting = sorted(w for w in waiting if w[0] is not None)
+        waiting = sorted((c.waiting_since(), id(c), c) for c in channels if c.waiting_since() is not None)
         for _, _, channel in waiting[:excess]:
-            channel.handle_close()
+            channel.will_close = True
         self.policy.shed += min(excess, len(waiting))
 
     def maintenance(self, now):
         """Close connections past request_timeout (no whole request yet) or channel_timeout (idle)."""
         for channel in list(self.active_channels.values()):
             if channel.overdue(now):
-                channel.handle_close()
+                channel.will_close = True
 
 
 class ConnectionPolicy:
@@ -235,6 +239,12 @@ class HttpServer:
         """Serve until SystemExit/KeyboardInterrupt; then let busy workers finish (waitress: up to 5 s)."""
         self._servers[0].run()
 
+    def stop(self):
+        """End :meth:`run` from another thread (tests, embedding): close from inside the loop, drain."""
+        if not self._closed:
+            self._servers[0].trigger.pull_trigger(self.close)
+        self.dispatcher.shutdown()
+
     def close(self):
         """Stop listening and drop every connection. Idempotent."""
         if self._closed:
@@ -242,7 +252,7 @@ class HttpServer:
         self._closed = True
         logging.getLogger(QUEUE_LOGGER).removeFilter(self._queue_filter)
         for channel in list(self._map.values()):
-            if channel not in self._servers:
+            if isinstance(channel, RobotChannel):
                 channel.close()
         for server in self._servers:
             server.close()
