@@ -1,7 +1,9 @@
 """``flask-move-server``: read the config, build every part, serve, stop cleanly.
 
 Wiring and lifecycle only. Parts are started in order and registered on an
-ExitStack, so SIGTERM/SIGINT (or a fatal ROS event) closes them in reverse:
+ExitStack, so SIGTERM/SIGINT (or a fatal ROS event) closes them in reverse.
+A signal stops the robot first (cancel the goal, end teleop, motors at zero;
+a waiting /goto answers 503), then lets waitress drain, then closes the rest:
 stop accepting requests, cancel the goal, zero the velocity, stop the motors,
 withdraw the mDNS records, shut the ROS node down. Exit status: 0 after a
 signal, 2 for a bad config, 3 when the ROS master was replaced (systemd
@@ -14,6 +16,7 @@ import logging
 import os
 import signal
 import sys
+import time
 
 from flask_move_server import __version__
 from flask_move_server import config as config_mod
@@ -140,19 +143,20 @@ class Server:
         self.config = config
         self.exit_code = EXIT_OK
         self.http = None
+        self.robot = None
         self._stack = contextlib.ExitStack()
 
     def start(self):
         from flask_move_server import waypoints
+        from flask_move_server.http_server import HttpServer
         from flask_move_server.web import create_app
 
         stack = self._stack
         store = waypoints.WaypointStore(self.config.waypoints.file, self.config.waypoints.lock_timeout)
         robot = self._build_robot(stack)
         app = create_app(self.config, robot, store, token=self.config.resolved_token())
-        self.http = _http_server(app, self.config.server)
+        self.http = HttpServer(app, self.config.server)
         stack.callback(self.http.close)
-        # Closed first: a /goto still waiting for its goal answers now, so waitress stops at once.
         stack.callback(robot.stop)
         self.port = int(self.http.effective_port)
         log.info("serving the API on http://%s:%d (waypoints: %s, %d loaded)",
@@ -228,6 +232,19 @@ class Server:
             self.close()
         return self.exit_code
 
+    def on_signal(self, signum, frame):
+        """SIGTERM/SIGINT: stop the robot first (motors at zero, a waiting /goto answers 503), then drain."""
+        received = time.monotonic()
+        log.info("received %s, stopping", signal.Signals(signum).name)
+        try:
+            if self.robot is not None:
+                self.robot.shutdown()
+                motors = self.robot.drive.status()
+                log.info("robot stopped %.1f ms after the signal: goal canceled, teleop ended, motors left %s right %s",
+                         (time.monotonic() - received) * 1000, motors.get("left"), motors.get("right"))
+        finally:
+            raise SystemExit(self.exit_code)
+
     def fatal(self, reason):
         """Called from any thread: stop the server with a non-zero exit status."""
         log.error("stopping: %s", reason)
@@ -252,25 +269,6 @@ def build_robot(config, node, drive, estop=None):
     return Robot(node, navigator, pose, teleop, drive, estop)
 
 
-def _http_server(app, server_config):
-    import waitress
-
-    return waitress.create_server(
-        app,
-        host=server_config.host,
-        port=server_config.port,
-        threads=server_config.threads,
-        max_request_body_size=server_config.max_body_bytes,
-        ident="flask-move-server",
-        clear_untrusted_proxy_headers=True,
-    )
-
-
-def _raise_exit(signum, frame):
-    log.info("received %s, stopping", signal.Signals(signum).name)
-    raise SystemExit(EXIT_OK)
-
-
 def main(argv=None):
     argv = sys.argv[1:] if argv is None else argv
     ours, ros_args = split_ros_args(argv)
@@ -281,8 +279,8 @@ def main(argv=None):
     except ConfigError as exc:
         return _refuse(exc, EXIT_CONFIG)
     server = Server(config)
-    signal.signal(signal.SIGTERM, _raise_exit)
-    signal.signal(signal.SIGINT, _raise_exit)
+    signal.signal(signal.SIGTERM, server.on_signal)
+    signal.signal(signal.SIGINT, server.on_signal)
     try:
         server.start()
     except (ConfigError, WaypointFileError) as exc:

@@ -90,6 +90,9 @@ class ServerConfig:
     max_body_bytes: int = _check(_positive, default=16384)
     static: bool = True
     allowed_hosts: List[str] = _check(_host_names, default_factory=list)
+    connection_limit: int = _check(_positive, default=100)
+    request_timeout: float = _check(_positive, default=10.0)
+    channel_timeout: float = _check(_positive, default=30.0)
 
 
 @dataclass

@@ -132,6 +132,12 @@ class NoPose(MoveServerError, LookupError):
     code = "no_pose"
 
 
+class ShuttingDown(MoveServerError, ConnectionError):
+    """The server is stopping (SIGTERM/SIGINT): the robot was stopped and takes no new motion."""
+
+    code = "shutting_down"
+
+
 class DriveError(MoveServerError, RuntimeError):
     """The motor backend cannot be set up or commanded."""
 

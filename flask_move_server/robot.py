@@ -8,7 +8,9 @@ e-stop latch stops everything and refuses goals and teleop until released).
 """
 
 from flask_move_server.drive.estop import EStop
-from flask_move_server.errors import NavigationFailed
+from flask_move_server.errors import NavigationFailed, ShuttingDown
+
+_SHUTTING_DOWN = "The server is shutting down: the robot was stopped. Send the command again once it is back."
 
 
 class Robot:
@@ -24,10 +26,11 @@ class Robot:
         # A zero Twist is ramped down by the base; a deadman that runs out must stop at once.
         teleop.on_expire(drive.stop)
         self.estop.when_engaged(lambda source: self.stop())
+        self.shutting_down = False
 
     def goto(self, goal):
         """Send the robot to ``goal``; returns the goal's sequence number."""
-        self.estop.refuse_motion("goals are")
+        self._refuse_motion("goals are")
         seq = self.navigator.goto(goal)
         self.teleop_control.stop()
         self._unless_latched_meanwhile()
@@ -36,6 +39,7 @@ class Robot:
     def wait(self, seq, timeout):
         """Wait up to ``timeout`` s for goal ``seq``; True when reached, False when still under way."""
         state = self.navigator.wait(seq, timeout)
+        self._check_running()
         if state == "succeeded":
             return True
         if state == "active":
@@ -50,9 +54,23 @@ class Robot:
         self.drive.stop()
         return canceled
 
+    def shutdown(self):
+        """The server is stopping: stop first, refuse motion, answer every waiting /goto (ShuttingDown)."""
+        self.shutting_down = True
+        self.stop()
+        self.navigator.release_waiters()
+
+    def _check_running(self):
+        if self.shutting_down:
+            raise ShuttingDown(_SHUTTING_DOWN)
+
+    def _refuse_motion(self, what):
+        self._check_running()
+        self.estop.refuse_motion(what)
+
     def teleop(self, linear, angular):
         """Drive at the given velocity for the deadman time; cancels a goal under way."""
-        self.estop.refuse_motion("teleop is")
+        self._refuse_motion("teleop is")
         result = self.teleop_control.command(linear, angular)
         if self.navigator.active:
             self.navigator.cancel()
@@ -61,10 +79,10 @@ class Robot:
         return result
 
     def _unless_latched_meanwhile(self):
-        """An e-stop engaged while a goal or command was on its way: stop that one too, and refuse."""
-        if self.estop.latched:
+        """An e-stop or a shutdown came while a goal or command was on its way: stop that one too, and refuse."""
+        if self.estop.latched or self.shutting_down:
             self.stop()
-            self.estop.refuse_motion("goals and teleop are")
+            self._refuse_motion("goals and teleop are")
 
     def current_pose(self):
         """The robot's pose in the map frame now; NoPose when unknown or stale."""

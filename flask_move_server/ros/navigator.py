@@ -61,6 +61,7 @@ class Navigator:
         self._client = None
         self._goal_pub = None
         self._cancel_pub = None
+        self._released = False
         node.when_ready(self._setup)
         node.when_lost(self._master_lost)
 
@@ -120,12 +121,18 @@ class Navigator:
         """Block until goal ``seq`` ends or ``timeout`` passes; its state then."""
         deadline = time.monotonic() + timeout
         with self._cond:
-            while self._seq == seq and self._state not in TERMINAL:
+            while self._seq == seq and self._state not in TERMINAL and not self._released:
                 remaining = deadline - time.monotonic()
                 if remaining <= 0:
                     break
                 self._cond.wait(remaining)
             return self._state if self._seq == seq else CANCELED
+
+    def release_waiters(self):
+        """Wake every :meth:`wait`, now and from now on: the server is stopping."""
+        with self._cond:
+            self._released = True
+            self._cond.notify_all()
 
     @property
     def active(self):

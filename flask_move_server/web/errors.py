@@ -31,6 +31,7 @@ STATUS = (
     (errors.RosUnavailable, 503),
     (errors.NavigationUnavailable, 503),
     (errors.DriveError, 503),
+    (errors.ShuttingDown, 503),
 )
 
 _HTTP_CODES = {

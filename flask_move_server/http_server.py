@@ -1,0 +1,289 @@
+"""The HTTP server: waitress, hardened for a robot anyone on the Wi-Fi can reach.
+
+Waitress as it comes lets ~100 idle sockets lock every client out (it stops
+accepting at ``connection_limit``), answers its own errors (400, 413, 431, 501)
+in ``text/plain``, refuses a body of exactly the limit, and logs one warning
+per queued request. This module builds the server from ``ServerConfig`` with:
+
+- a connection policy: always accept; over ``connection_limit``, close the
+  connections that have waited longest without a request in progress (idle,
+  or a slow-loris still sending its headers); close a connection that has not
+  delivered a whole request within ``request_timeout`` and a keep-alive one
+  idle for ``channel_timeout``;
+- a stop lane: ``POST /stop`` (and ``/estop``) jumps the request queue, and
+  gets a spare thread when every worker is busy (a ``/goto`` with ``wait``
+  holds one), so the owner can always stop the robot;
+- errors in the API's JSON shape wherever waitress answers before the app;
+- a rate-limited summary instead of one ``Task queue depth`` line per request.
+"""
+
+import json
+import logging
+import resource
+import threading
+import time
+
+from waitress.adjustments import Adjustments
+from waitress.channel import HTTPChannel
+from waitress.server import TcpWSGIServer
+from waitress.task import ErrorTask, ThreadedTaskDispatcher
+
+log = logging.getLogger(__name__)
+
+URGENT = frozenset({("POST", "/stop"), ("POST", "/estop")})
+SPARE_THREADS = 2  # extra threads the stop lane may start when every worker is busy
+QUEUE_LOGGER = "waitress.queue"
+QUEUE_SUMMARY_INTERVAL = 60.0
+MAINTENANCE_INTERVAL = 1  # seconds between sweeps for timed-out connections
+
+_ERRORS = {
+    400: ("bad_request", "The request is not valid HTTP ({detail})."),
+    413: ("body_too_large", "The request body is larger than {limit} bytes."),
+    431: ("headers_too_large", "The request's headers are too large ({detail})."),
+    500: ("internal_error", "The server failed unexpectedly; its log has the details."),
+    501: ("not_implemented", "The server does not support this request ({detail})."),
+}
+
+
+class JsonErrorTask(ErrorTask):
+    """Waitress's own error answers (bad framing, too large, ...) in the API's JSON error shape."""
+
+    def execute(self):
+        error = self.request.error
+        limit = self.channel.server.max_body_bytes
+        code, template = _ERRORS.get(error.code, ("error", "The request failed ({detail})."))
+        message = template.format(detail=str(error.body).rstrip("."), limit=limit)
+        body = json.dumps({"status": "error", "error": code, "message": message}).encode("utf-8")
+        self.status = "{} {}".format(error.code, error.reason)
+        self.response_headers.append(("Content-Type", "application/json"))
+        self.response_headers.append(("Connection", "close"))  # waitress closes after an error
+        self.close_on_finish = True
+        self.content_length = len(body)
+        self.write(body)
+
+
+class RobotChannel(HTTPChannel):
+    """One client connection; remembers when its current request began (for request_timeout)."""
+
+    error_task_class = JsonErrorTask
+    request_began = None
+
+    def received(self, data):
+        if data and self.request is None:
+            self.request_began = time.time()
+        return super().received(data)
+
+    def waiting_since(self):
+        """When this connection began to wait for something it has not finished sending; None if busy.
+
+        Busy: a request is queued or in service, or its answer is still being sent.
+        """
+        if self.requests or self.total_outbufs_len or self.will_close:
+            return None
+        if self.request is not None:
+            return self.request_began
+        return self.last_activity
+
+    def overdue(self, now):
+        """True when this connection should be closed by the timeouts."""
+        since = self.waiting_since()
+        if since is None:
+            return False
+        adj = self.server.policy
+        if self.request is not None or self.request_began is None:  # partial request, or nothing yet
+            return now - since > adj.request_timeout
+        return now - since > adj.channel_timeout
+
+
+class StopLaneDispatcher(ThreadedTaskDispatcher):
+    """Worker threads, with ``POST /stop`` served first and never stuck behind busy workers."""
+
+    def __init__(self):
+        super().__init__()
+        self._spares = threading.BoundedSemaphore(SPARE_THREADS)
+
+    def add_task(self, task):
+        if not _is_urgent(task):
+            super().add_task(task)
+            return
+        with self.lock:
+            idle = len(self.threads) - self.stop_count - self.active_count
+            if idle > len(self.queue) or not self._spares.acquire(blocking=False):
+                self.queue.appendleft(task)
+                self.queue_cv.notify()
+                return
+        threading.Thread(target=self._serve_spare, args=(task,), name="waitress-stop-lane", daemon=True).start()
+
+    def _serve_spare(self, task):
+        try:
+            task.service()
+        except BaseException:
+            self.logger.exception("Exception when servicing %r", task)
+        finally:
+            self._spares.release()
+
+
+def _is_urgent(channel):
+    requests = getattr(channel, "requests", None)
+    if not requests:
+        return False
+    request = requests[0]
+    return (getattr(request, "command", None), getattr(request, "path", None)) in URGENT
+
+
+class RobotWSGIServer(TcpWSGIServer):
+    """Waitress's TCP server with the connection policy of this module."""
+
+    channel_class = RobotChannel
+    policy = None
+    max_body_bytes = None
+
+    def readable(self):
+        now = time.time()
+        if now >= self.next_channel_cleanup:
+            self.next_channel_cleanup = now + self.adj.cleanup_interval
+            self.maintenance(now)
+        # Keep accepting past the limit (room is made in handle_accept), up to a hard ceiling.
+        return self.accepting and len(self.active_channels) < 2 * self.adj.connection_limit
+
+    def handle_accept(self):
+        super().handle_accept()
+        self.make_room()
+
+    def make_room(self):
+        """Over ``connection_limit``: close the connections that have waited longest for nothing.
+
+        Closed as waitress closes: ``will_close``, acted on by the loop's next pass (closing a
+        socket while the loop gathers its select() lists would hand select() a closed descriptor).
+        """
+        channels = list(self.active_channels.values())
+        excess = len(channels) - sum(1 for c in channels if c.will_close) - self.adj.connection_limit
+        if excess <= 0:
+            return
+        waiting = sorted((c.waiting_since(), id(c), c) for c in channels if c.waiting_since() is not None)
+        for _, _, channel in waiting[:excess]:
+            channel.will_close = True
+        self.policy.shed += min(excess, len(waiting))
+
+    def maintenance(self, now):
+        """Close connections past request_timeout (no whole request yet) or channel_timeout (idle)."""
+        for channel in list(self.active_channels.values()):
+            if channel.overdue(now):
+                channel.will_close = True
+
+
+class ConnectionPolicy:
+    """The timeouts and counters the server's connection policy uses."""
+
+    def __init__(self, server_config):
+        self.request_timeout = server_config.request_timeout
+        self.channel_timeout = server_config.channel_timeout
+        self.shed = 0
+
+
+class QueueDepthSummary(logging.Filter):
+    """Turns waitress's per-request ``Task queue depth`` warnings into one summary per interval."""
+
+    def __init__(self, interval=QUEUE_SUMMARY_INTERVAL, clock=time.monotonic):
+        super().__init__()
+        self.interval = interval
+        self._clock = clock
+        self._lock = threading.Lock()
+        self._count = self._deepest = 0
+        self._window_start = None
+        self._next = None
+
+    def filter(self, record):
+        if not str(record.msg).startswith("Task queue depth"):
+            return True
+        now = self._clock()
+        depth = record.args[0] if record.args else 0
+        with self._lock:
+            if self._window_start is None:
+                self._window_start = self._next = now
+            self._count += 1
+            self._deepest = max(self._deepest, depth)
+            if now < self._next:
+                return False
+            record.msg = "%d request(s) waited for a free worker thread in the last %.0f s (deepest queue: %d)"
+            record.args = (self._count, max(now - self._window_start, 0.0), self._deepest)
+            self._count = self._deepest = 0
+            self._window_start, self._next = now, now + self.interval
+            return True
+
+
+class HttpServer:
+    """The running waitress server: ``run()`` until SystemExit, ``close()`` idempotently."""
+
+    def __init__(self, app, server_config):
+        self.policy = ConnectionPolicy(server_config)
+        self.adj = Adjustments(**waitress_settings(server_config))
+        _raise_fd_limit(2 * server_config.connection_limit + 256)
+        self._map = {}
+        self.dispatcher = StopLaneDispatcher()
+        self.dispatcher.set_thread_count(self.adj.threads)
+        self._servers = [self._listen(app, sockinfo, server_config) for sockinfo in self.adj.listen]
+        self.effective_host = self._servers[0].effective_host
+        self.effective_port = self._servers[0].effective_port
+        self._queue_filter = QueueDepthSummary()
+        logging.getLogger(QUEUE_LOGGER).addFilter(self._queue_filter)
+        self._closed = False
+
+    def _listen(self, app, sockinfo, server_config):
+        server = RobotWSGIServer(app, map=self._map, dispatcher=self.dispatcher, adj=self.adj, sockinfo=sockinfo)
+        server.policy = self.policy
+        server.max_body_bytes = server_config.max_body_bytes
+        return server
+
+    def run(self):
+        """Serve until SystemExit/KeyboardInterrupt; then let busy workers finish (waitress: up to 5 s)."""
+        self._servers[0].run()
+
+    def stop(self):
+        """End :meth:`run` from another thread (tests, embedding): close from inside the loop, drain."""
+        if not self._closed:
+            self._servers[0].trigger.pull_trigger(self.close)
+        self.dispatcher.shutdown()
+
+    def close(self):
+        """Stop listening and drop every connection. Idempotent."""
+        if self._closed:
+            return
+        self._closed = True
+        logging.getLogger(QUEUE_LOGGER).removeFilter(self._queue_filter)
+        for channel in list(self._map.values()):
+            if isinstance(channel, RobotChannel):
+                channel.close()
+        for server in self._servers:
+            server.close()
+
+
+def waitress_settings(server_config):
+    """Waitress's Adjustments for ``server_config``."""
+    return dict(
+        host=server_config.host,
+        port=server_config.port,
+        threads=server_config.threads,
+        connection_limit=server_config.connection_limit,
+        channel_timeout=server_config.channel_timeout,
+        cleanup_interval=MAINTENANCE_INTERVAL,
+        # waitress refuses a body of exactly its limit; the API's limit includes max_body_bytes itself
+        max_request_body_size=server_config.max_body_bytes + 1,
+        ident="flask-move-server",
+        clear_untrusted_proxy_headers=True,
+    )
+
+
+def _raise_fd_limit(wanted):
+    """Raise the soft open-files limit towards ``wanted`` (sockets are files); warn when it cannot."""
+    soft, hard = resource.getrlimit(resource.RLIMIT_NOFILE)
+    if soft == resource.RLIM_INFINITY or soft >= wanted:
+        return
+    target = wanted if hard == resource.RLIM_INFINITY else min(wanted, hard)
+    try:
+        resource.setrlimit(resource.RLIMIT_NOFILE, (target, hard))
+    except (ValueError, OSError):
+        target = soft
+    if target < wanted:
+        log.warning("the open-files limit is %d, below the %d that server.connection_limit needs; "
+                    "raise it (systemd: LimitNOFILE=) or lower connection_limit", target, wanted)

@@ -1,0 +1,92 @@
+"""A hostile client without a token: holds many TCP connections open to a server.
+
+Half of them stay idle after connecting; the other half are slow-loris
+clients that send a request line one byte at a time and never finish it. A
+connection the server closes is opened again, so the count stays near ``count``
+for as long as the client runs (as an attacker's would). Used by the tests and
+by bench/bench_abuse.py. Loopback only; the run is bounded by ``max_seconds``.
+"""
+
+import select
+import socket
+import threading
+import time
+
+SLOW_REQUEST = b"GET /status HTTP/1.1\r\nHost: robot\r\nX-Slow: " + b"a" * 4000
+
+
+class HostileClients:
+    """``count`` connections to ``(host, port)`` held open by one background thread."""
+
+    def __init__(self, host, port, count=300, drip_interval=0.5, max_seconds=120):
+        self.address = (host, port)
+        self.count = count
+        self.drip_interval = drip_interval
+        self.max_seconds = max_seconds
+        self.reconnects = 0
+        self._socks = []  # [socket, slow, bytes sent]
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, name="hostile-clients", daemon=True)
+
+    def __enter__(self):
+        for i in range(self.count):
+            self._socks.append(self._open(slow=i % 2 == 1))
+        self._thread.start()
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+    def open_count(self):
+        return sum(1 for s in self._socks if s[0] is not None)
+
+    def _open(self, slow):
+        try:
+            sock = socket.create_connection(self.address, timeout=2)
+            sock.setblocking(False)
+        except OSError:
+            sock = None
+        return [sock, slow, 0]
+
+    def _run(self):
+        deadline = time.monotonic() + self.max_seconds
+        while not self._stop.wait(self.drip_interval) and time.monotonic() < deadline:
+            self._reopen_closed()
+            self._drip()
+
+    def _reopen_closed(self):
+        live = [s[0] for s in self._socks if s[0] is not None]
+        readable = select.select(live, [], [], 0)[0] if live else []
+        closed = set()
+        for sock in readable:
+            try:
+                if not sock.recv(65536):
+                    closed.add(sock)
+            except OSError:
+                closed.add(sock)
+        for i, entry in enumerate(self._socks):
+            if entry[0] is None or entry[0] in closed:
+                if entry[0] is not None:
+                    entry[0].close()
+                    self.reconnects += 1
+                self._socks[i] = self._open(entry[1])
+
+    def _drip(self):
+        for entry in self._socks:
+            sock, slow, sent = entry
+            if not slow or sock is None or sent >= len(SLOW_REQUEST):
+                continue
+            try:
+                entry[2] += sock.send(SLOW_REQUEST[sent:sent + 1])
+            except OSError:
+                pass  # closed by the server: reopened on the next round
+
+    def close(self):
+        """Stop the thread and close every connection. Idempotent."""
+        self._stop.set()
+        if self._thread.is_alive():
+            self._thread.join(5)
+        for entry in self._socks:
+            if entry[0] is not None:
+                entry[0].close()
+                entry[0] = None

@@ -1,0 +1,144 @@
+"""The hardened waitress server (flask_move_server.http_server) with the real app, real sockets.
+
+Errors waitress answers before the app are JSON, the body limit is exact,
+silent and slow connections are cut, and waitress's per-request queue warnings
+become one summary.
+"""
+
+import contextlib
+import json
+import logging
+import socket
+import threading
+import time
+from concurrent.futures import ThreadPoolExecutor
+
+import pytest
+import requests
+
+from flask_move_server.http_server import HttpServer
+from tests.conftest import wait_for
+from tests.standins.move_base import HOLD_X
+
+
+@contextlib.contextmanager
+def hardened(app, server_config):
+    """``app`` on the server the product runs, in a thread; yields (server, base URL)."""
+    server = HttpServer(app, server_config)
+    thread = threading.Thread(target=server.run, name="test-http-server", daemon=True)
+    thread.start()
+    try:
+        yield server, "http://127.0.0.1:{}".format(server.effective_port)
+    finally:
+        server.stop()
+        thread.join(5)
+        server.close()
+
+
+def raw(url, data, timeout=10):
+    """Send ``data`` on a fresh connection; the whole answer (status line, headers, body)."""
+    host, port = url.split("//")[1].split(":")
+    with socket.create_connection((host, int(port)), timeout=timeout) as sock:
+        sock.sendall(data)
+        chunks = []
+        while True:
+            chunk = sock.recv(65536)
+            if not chunk:
+                break
+            chunks.append(chunk)
+    head, _, body = b"".join(chunks).partition(b"\r\n\r\n")
+    lines = head.decode("latin-1").split("\r\n")
+    headers = dict(line.split(": ", 1) for line in lines[1:])
+    return int(lines[0].split()[1]), headers, body
+
+
+@pytest.fixture
+def served(app, robot_config):
+    with hardened(app, robot_config.server) as (server, url):
+        yield url
+
+
+@pytest.mark.parametrize("request_bytes, status, code", [
+    (b"get /status HTTP/1.1\r\nHost: robot\r\n\r\n", 400, "bad_request"),
+    (b"GET /status HTTP/1.1\r\nHost: robot\r\nBad Header\r\n\r\n", 400, "bad_request"),
+    (b"POST /goto HTTP/1.1\r\nHost: robot\r\nTransfer-Encoding: gzip\r\n\r\n", 501, "not_implemented"),
+    (b"POST /goto HTTP/1.1\r\nHost: robot\r\nContent-Length: 16385\r\n\r\n", 413, "body_too_large"),
+    (b"POST /goto HTTP/1.1\r\nHost: robot\r\nTransfer-Encoding: chunked\r\n\r\nzz\r\n", 400, "bad_request"),
+])
+def test_errors_waitress_answers_before_the_app_are_json(served, request_bytes, status, code):
+    got, headers, body = raw(served, request_bytes)
+    assert got == status
+    assert headers["Content-Type"] == "application/json"
+    answer = json.loads(body)
+    assert answer["status"] == "error" and answer["error"] == code and answer["message"].endswith(".")
+
+
+def _padded(limit, extra=0):
+    body = b'{"x": 1.0, "y": 2.0, "yaw": 0.5}'
+    return body + b" " * (limit - len(body) + extra)
+
+
+def test_a_body_of_exactly_max_body_bytes_is_accepted_and_one_more_byte_is_a_json_413(served, robot_config):
+    limit = robot_config.server.max_body_bytes
+    exact = requests.put(served + "/waypoints/porch", data=_padded(limit), timeout=10)
+    assert exact.status_code == 201, exact.text
+    over = requests.put(served + "/waypoints/porch", data=_padded(limit, 1), timeout=10)
+    assert over.status_code == 413 and over.json()["error"] == "body_too_large"
+    assert str(limit) in over.json()["message"]
+
+
+def test_silent_and_slow_connections_are_closed_after_request_timeout(app, robot_config):
+    robot_config.server.request_timeout = 1.0
+    with hardened(app, robot_config.server) as (server, url):
+        port = int(url.rsplit(":", 1)[1])
+        silent = socket.create_connection(("127.0.0.1", port))
+        slow = socket.create_connection(("127.0.0.1", port))
+        silent.settimeout(15)
+        slow.settimeout(0.3)
+        started = time.monotonic()
+        closed = None
+        with silent, slow:
+            for byte in b"GET /status HTTP/1.1\r\nHost: robot\r\nX-Slow: " + b"a" * 100:
+                with contextlib.suppress(socket.timeout):
+                    if slow.recv(1024) == b"":
+                        closed = time.monotonic() - started
+                        break
+                with contextlib.suppress(OSError):
+                    slow.send(bytes([byte]))
+            assert closed is not None and closed < 15, "the slow-loris connection stayed open"
+            assert silent.recv(1024) == b"", "the silent connection stayed open"
+        # the server still serves
+        assert requests.get(url + "/health", timeout=5).status_code == 200
+
+
+class Records(logging.Handler):
+    def __init__(self):
+        super().__init__()
+        self.messages = []
+
+    def emit(self, record):
+        self.messages.append(record.getMessage())
+
+
+def test_queued_requests_log_one_summary_not_one_line_each(app, robot_config, ready_robot):
+    robot_config.server.threads = 1
+    queue_log = logging.getLogger("waitress.queue")
+    records = Records()
+    queue_log.addHandler(records)
+    try:
+        with hardened(app, robot_config.server) as (server, url):
+            holder = ThreadPoolExecutor(1)
+            waiting = holder.submit(requests.post, url + "/goto", json={"x": HOLD_X, "y": 0.0, "wait": 30},
+                                    timeout=60)
+            wait_for(lambda: ready_robot.navigator.active, message="the goal holding the only worker")
+            with ThreadPoolExecutor(20) as pool:
+                answers = [pool.submit(requests.get, url + "/waypoints", timeout=60) for _ in range(40)]
+                time.sleep(1)  # every request has reached the queue
+                assert requests.post(url + "/stop", timeout=10).status_code == 200
+                assert all(a.result().status_code == 200 for a in answers)
+            assert waiting.result().status_code == 409
+            holder.shutdown()
+    finally:
+        queue_log.removeHandler(records)
+    assert 1 <= len(records.messages) <= 2, records.messages
+    assert "waited for a free worker thread" in records.messages[0]
