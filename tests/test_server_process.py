@@ -85,3 +85,20 @@ def test_a_lost_master_shows_in_health_and_a_new_one_restarts_the_server(server_
         assert server.find("a new ROS master answers")
     finally:
         stop_process(master)
+
+
+def test_roslaunch_setting_a_run_id_on_the_running_master_is_not_a_new_master(server_factory, master_port):
+    """``rosmaster --core`` has no ``/run_id``; a roslaunch run against it sets one. Same master: keep serving."""
+    import xmlrpc.client
+
+    master = start_master(master_port)
+    server = server_factory(master_port)
+    try:
+        wait_for(lambda: server.get("/health").json()["ros"] == "connected", timeout=30)
+        xmlrpc.client.ServerProxy(server.master_uri).setParam("/roslaunch", "/run_id", "4d1c5a0e-roslaunch")
+        time.sleep(3)  # three master checks (ros.master_check_period is 1 s)
+        assert server.proc.poll() is None, "the server exited: it took the same master for a new one"
+        assert server.get("/health").json()["ros"] == "connected"
+        assert not server.find("a new ROS master answers")
+    finally:
+        stop_process(master)

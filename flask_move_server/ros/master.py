@@ -1,5 +1,6 @@
 """Talking to the ROS master's XML-RPC API with a timeout (rospy's has none)."""
 
+import collections
 import os
 import xmlrpc.client
 
@@ -27,15 +28,34 @@ def proxy(uri=None, timeout=2.0):
     return xmlrpc.client.ServerProxy(uri or master_uri(), transport=_TimeoutTransport(timeout))
 
 
+class MasterIdentity(collections.namedtuple("MasterIdentity", "pid run_id")):
+    """What tells a ROS master from a restarted one: its pid, and its ``/run_id`` once it has one."""
+
+    __slots__ = ()
+
+    def same_master(self, other):
+        """True when ``other`` is this master seen again.
+
+        roslaunch sets ``/run_id`` on a master started without one (``rosmaster --core``), so a
+        run id appearing is not a new master; a different pid, or a different run id, is.
+        """
+        if self.pid != other.pid:
+            return False
+        return self.run_id is None or other.run_id is None or self.run_id == other.run_id
+
+    def __str__(self):
+        return "pid {}{}".format(self.pid, ", run_id {}".format(self.run_id) if self.run_id else "")
+
+
 def identity(caller_id, uri=None, timeout=2.0):
-    """What tells this master from a restarted one (``/run_id``, else its pid), or None when it does not answer."""
+    """The :class:`MasterIdentity` of the master at ``uri``, or None when it does not answer."""
     master = proxy(uri, timeout)
     try:
-        code, _, run_id = master.getParam(caller_id, "/run_id")
-        if code == 1:
-            return "run_id:{}".format(run_id)
         code, _, pid = master.getPid(caller_id)
-        return "pid:{}".format(pid) if code == 1 else None
+        if code != 1:
+            return None
+        code, _, run_id = master.getParam(caller_id, "/run_id")
+        return MasterIdentity(pid, run_id if code == 1 else None)
     except (OSError, xmlrpc.client.Error):
         return None
 

@@ -7,7 +7,7 @@ tracker, teleop, base controller) register a callback with :meth:`when_ready`.
 
 The master is then watched. When it stops answering, the node is ``lost``
 (``/health`` says so; ``on_lost`` callbacks stop the motors). When a *new*
-master answers (its ``/run_id``, or pid, changed) this node is not registered
+master answers (its pid, or its ``/run_id``, changed) this node is not registered
 with it and rospy cannot re-register, so ``on_fatal`` is called: the server
 exits non-zero and systemd restarts it cleanly.
 """
@@ -136,12 +136,14 @@ class RosNode:
             identity = master.identity(self.name, timeout=max(1.0, self.check_period))
             if identity is None:
                 self._master_gone()
-            elif identity != self._identity:
+            elif not self._identity.same_master(identity):
                 self._master_replaced()
                 return
-            elif self.state == LOST:
-                log.warning("the ROS master at %s answers again", self.master_uri)
-                self.state = CONNECTED
+            else:
+                self._identity = identity  # keeps a run id set since (roslaunch against our master)
+                if self.state == LOST:
+                    log.warning("the ROS master at %s answers again", self.master_uri)
+                    self.state = CONNECTED
 
     def _master_gone(self):
         if self.state != CONNECTED:
