@@ -1,0 +1,310 @@
+"""Server configuration: dataclasses with defaults, loaded from one YAML file.
+
+Every key has a default that suits the reference robot (Pi 4, two L298N
+bridges, skid-steer, RPLIDAR A1), so an empty file, or no file at all, is a
+valid configuration. Validation happens once, at start-up: a wrong type, a
+value out of range or an unknown key (a typo must not silently fall back to a
+default) raises :class:`~flask_move_server.errors.ConfigError` naming the
+file, the key and the reason. Pure: imports neither rospy nor Flask.
+
+This module is the schema; the generic loader is typed_yaml.py, the token and the serving
+policy are access.py, and the motor backend names come from the registry in drive/backends.
+"""
+
+import os
+import re
+from dataclasses import dataclass, field
+from typing import List, Literal, Optional
+
+import yaml
+
+from flask_move_server import access
+from flask_move_server.access import TOKEN_ENV, check_serving_policy  # noqa: F401 (config.<name> for the wiring)
+from flask_move_server.drive.backends import names as backend_names
+from flask_move_server.errors import ConfigError
+from flask_move_server.typed_yaml import (  # noqa: F401 (as_plain, merge: config.<name> for the wiring)
+    as_plain,
+    build,
+    checked,
+    internal_field,
+    merge,
+    path_field,
+)
+
+# Every motor backend the registry knows (drive/backends), without importing any of them.
+MotorBackendName = Literal[tuple(backend_names())]
+
+
+def _positive(value):
+    return None if value > 0 else "must be greater than 0"
+
+
+def _non_negative(value):
+    return None if value >= 0 else "must be 0 or more"
+
+
+def _port(value):
+    return None if 0 <= value <= 65535 else "must be a TCP port, 0 to 65535"
+
+
+def _dns_label(value):
+    if value.endswith(".local"):
+        return "must be the name without .local ({!r}, not {!r})".format(value[: -len(".local")], value)
+    valid = 0 < len(value) <= 63 and value[0] != "-" and value[-1] != "-" and all(
+        c.isascii() and (c.isalnum() or c == "-") for c in value
+    )
+    return None if valid else "must be 1 to 63 letters, digits or '-' (not at either end), like robot"
+
+
+def _instance_name(value):
+    if "." in value:
+        return "must not contain '.' (it separates DNS labels)"
+    if 0 < len(value.encode("utf-8")) <= 63:
+        return None
+    return "must be 1 to 63 bytes of text"
+
+
+def _host_names(value):
+    for name in value:
+        if name != "*" and not re.fullmatch(r"\.?[A-Za-z0-9_-]+(\.[A-Za-z0-9_-]+)*\.?", name):
+            return "must list host names (robot.lan), domains (.lan) or '*', got {!r}".format(name)
+    return None
+
+
+def _speed_factor(value):
+    return None if 0 < value <= 20 else "must be above 0 and at most 20 (simulated seconds per real second)"
+
+
+@dataclass
+class ServerConfig:
+    """HTTP server: where it listens and who may use it."""
+
+    host: str = "0.0.0.0"
+    port: int = checked(_port, default=5000)
+    token: Optional[str] = None
+    token_file: Optional[str] = path_field(default=None)
+    insecure: bool = False
+    threads: int = checked(_positive, default=6)
+    max_body_bytes: int = checked(_positive, default=16384)
+    static: bool = True
+    allowed_hosts: List[str] = checked(_host_names, default_factory=list)
+    connection_limit: int = checked(_positive, default=100)
+    request_timeout: float = checked(_positive, default=10.0)
+    channel_timeout: float = checked(_positive, default=30.0)
+
+
+@dataclass
+class WaypointsConfig:
+    """Where the named places live."""
+
+    file: str = path_field(default="waypoints.yaml")
+    lock_timeout: float = checked(_positive, default=3.0)
+
+
+@dataclass
+class FramesConfig:
+    """tf frame names (REP-105)."""
+
+    map: str = "map"
+    odom: str = "odom"
+    base_link: str = "base_link"
+
+
+@dataclass
+class RosConfig:
+    """The rospy node and how the ROS master is watched."""
+
+    node_name: str = "flask_move_server"
+    master_check_period: float = checked(_positive, default=1.0)
+    exit_on_new_master: bool = True
+    frames: FramesConfig = field(default_factory=FramesConfig)
+
+
+@dataclass
+class NavigationConfig:
+    """How goals reach the navigation stack."""
+
+    goal_interface: Literal["action", "topic"] = "action"
+    action: str = "move_base"
+    simple_goal_topic: str = "move_base_simple/goal"
+    amcl_pose_topic: str = "amcl_pose"
+    server_wait: float = checked(_non_negative, default=0.2)
+    max_wait: float = checked(_positive, default=600.0)
+    pose_max_age: float = checked(_positive, default=2.0)
+
+
+@dataclass
+class TeleopConfig:
+    """Velocity commands sent from ``POST /teleop``."""
+
+    topic: str = "cmd_vel"
+    max_linear: float = checked(_positive, default=0.4)
+    max_angular: float = checked(_positive, default=1.5)
+    deadman: float = checked(_positive, default=0.5)
+    rate: float = checked(_positive, default=10.0)
+
+
+def _fraction(value):
+    return None if 0 <= value <= 1 else "must be between 0 and 1"
+
+
+def _gpio(value):
+    return None if value is None or 0 <= value <= 27 else "must be a BCM GPIO number, 0 to 27"
+
+
+def _debounce(value):
+    return None if 0 <= value <= 1 else "must be 0 to 1 seconds"
+
+
+@dataclass
+class MotorChannelConfig:
+    """One L298N channel (a motor, or two in parallel): BCM pins and direction."""
+
+    in1: Optional[int] = checked(_gpio, default=None)
+    in2: Optional[int] = checked(_gpio, default=None)
+    en: Optional[int] = checked(_gpio, default=None)
+    invert: bool = False
+
+
+def _channels(*pins):
+    return field(default_factory=lambda: [MotorChannelConfig(*p) for p in pins])
+
+
+@dataclass
+class L298nConfig:
+    """Two L298N bridges on the Pi's GPIO (BCM numbering); defaults in docs/wiring.md."""
+
+    left: List[MotorChannelConfig] = _channels((17, 27, 22), (23, 24, 25))
+    right: List[MotorChannelConfig] = _channels((12, 13, 19), (16, 20, 21))
+    pwm_frequency: float = checked(_positive, default=200.0)
+    stop_mode: Literal["brake", "coast"] = "brake"
+
+
+@dataclass
+class SerialDriveConfig:
+    """A microcontroller speaking the ros_arduino_bridge protocol over pyserial."""
+
+    port: str = "/dev/ttyACM0"
+    baudrate: int = checked(_positive, default=57600)
+    timeout: float = checked(_positive, default=0.2)
+    pid_rate: float = checked(_positive, default=30.0)
+    ticks_per_rev: float = checked(_positive, default=1920.0)
+    open_delay: float = checked(_non_negative, default=2.0)
+    reconnect_period: float = checked(_positive, default=1.0)
+    keepalive: float = checked(_positive, default=0.5)
+
+
+@dataclass
+class DriveConfig:
+    """The motor driver that turns ``/cmd_vel`` into wheel commands."""
+
+    backend: MotorBackendName = "none"
+    cmd_vel_topic: str = "cmd_vel"
+    odom_topic: str = "odom"
+    cmd_vel_timeout: float = checked(_positive, default=0.5)
+    odom_rate: float = checked(_positive, default=20.0)
+    control_rate: float = checked(_positive, default=50.0)
+    publish_tf: bool = True
+    track_width: float = checked(_positive, default=0.2)
+    track_multiplier: float = checked(_positive, default=1.0)
+    wheel_radius: float = checked(_positive, default=0.0325)
+    max_wheel_speed: float = checked(_positive, default=0.5)
+    min_duty: float = checked(_fraction, default=0.3)
+    max_duty: float = checked(_fraction, default=1.0)
+    max_linear: float = checked(_positive, default=0.4)
+    max_angular: float = checked(_positive, default=2.0)
+    max_linear_accel: float = checked(_non_negative, default=1.0)
+    max_angular_accel: float = checked(_non_negative, default=4.0)
+    l298n: L298nConfig = field(default_factory=L298nConfig)
+    serial: SerialDriveConfig = field(default_factory=SerialDriveConfig)
+    estop_pin: Optional[int] = checked(_gpio, default=None)
+    estop_debounce: float = checked(_debounce, default=0.02)
+
+
+@dataclass
+class MdnsConfig:
+    """Advertising the robot as ``<hostname>.local`` with zeroconf (see docs/network.md)."""
+
+    enabled: bool = True
+    hostname: str = checked(_dns_label, default="robot")
+    instance: Optional[str] = checked(_instance_name, default=None)
+    publish_hostname: Literal["auto", "always", "never"] = "auto"
+    address_check_period: float = checked(_positive, default=2.0)
+
+
+@dataclass
+class SimConfig:
+    """The simulated robot and world used by ``--sim``."""
+
+    enabled: bool = False
+    map: Optional[str] = path_field(default=None)
+    speed_factor: float = checked(_speed_factor, default=1.0)
+    robot_radius: float = checked(_positive, default=0.15)
+    safety_margin: float = checked(_non_negative, default=0.1)
+    rate: float = checked(_positive, default=50.0)
+    scan_rate: float = checked(_non_negative, default=5.5)
+    control_rate: float = checked(_positive, default=20.0)
+    max_linear: float = checked(_positive, default=0.3)
+    max_angular: float = checked(_positive, default=1.2)
+    xy_goal_tolerance: float = checked(_positive, default=0.1)
+    yaw_goal_tolerance: float = checked(_positive, default=0.2)
+    stuck_timeout: float = checked(_positive, default=10.0)
+    map_topic: str = "map"
+    scan_topic: str = "scan"
+
+
+@dataclass
+class Config:
+    """The whole server configuration, one section per concern."""
+
+    server: ServerConfig = field(default_factory=ServerConfig)
+    waypoints: WaypointsConfig = field(default_factory=WaypointsConfig)
+    ros: RosConfig = field(default_factory=RosConfig)
+    navigation: NavigationConfig = field(default_factory=NavigationConfig)
+    teleop: TeleopConfig = field(default_factory=TeleopConfig)
+    drive: DriveConfig = field(default_factory=DriveConfig)
+    mdns: MdnsConfig = field(default_factory=MdnsConfig)
+    sim: SimConfig = field(default_factory=SimConfig)
+    source: str = internal_field(default="(defaults)")
+
+    def resolved_token(self):
+        """The bearer token in force, or None (see access.resolved_token)."""
+        return access.resolved_token(self)
+
+    def serves_only_loopback(self):
+        """True when the server binds a loopback address only."""
+        return access.serves_only_loopback(self)
+
+
+def load(path=None):
+    """Load and validate the config file at ``path`` (``None``: all defaults)."""
+    if path is None:
+        return Config()
+    data = _read_yaml(path)
+    base_dir = os.path.dirname(os.path.abspath(path))
+    config = build(Config, data, source=str(path), base_dir=base_dir)
+    config.source = str(path)
+    return config
+
+
+def _read_yaml(path):
+    try:
+        with open(path, encoding="utf-8") as f:
+            data = yaml.safe_load(f)
+    except FileNotFoundError:
+        raise ConfigError(path, None, "file not found")
+    except OSError as exc:
+        raise ConfigError(path, None, "cannot read: {}".format(exc.strerror))
+    except yaml.YAMLError as exc:
+        raise ConfigError(path, None, "not valid YAML: {}".format(_one_line(exc)))
+    if data is None:
+        return {}
+    if not isinstance(data, dict):
+        raise ConfigError(path, None, "the top level must be a mapping of sections (server:, drive:, ...)")
+    return data
+
+
+def _one_line(exc):
+    return " ".join(str(exc).split())
+
+
