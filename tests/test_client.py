@@ -46,7 +46,7 @@ def robot_server(ros_node, prefix, waypoints_file, token=None, move_base=True):
     from flask_move_server.ros.navigator import Navigator
     from flask_move_server.ros.pose import PoseTracker
     from flask_move_server.ros.teleop import Teleop
-    from flask_move_server.waypoints import WaypointStore
+    from flask_move_server.waypoint_store import WaypointStore
     from flask_move_server.web import create_app
 
     cfg = config_mod.Config()
