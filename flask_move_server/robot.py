@@ -9,6 +9,7 @@ e-stop latch stops everything and refuses goals and teleop until released).
 
 from flask_move_server.drive.estop import EStop
 from flask_move_server.errors import NavigationFailed, ShuttingDown
+from flask_move_server.goal_endings import failure_sentence
 
 _SHUTTING_DOWN = "The server is shutting down: the robot was stopped. Send the command again once it is back."
 
@@ -45,7 +46,7 @@ class Robot:
         if state == "active":
             return False
         nav = self.navigator.status()
-        raise NavigationFailed(state, nav.get("message") or _failure_message(state, nav))
+        raise NavigationFailed(state, nav.get("message") or failure_sentence(state, nav["target"]))
 
     def stop(self):
         """Cancel the goal, end teleop, command zero velocity."""
@@ -117,12 +118,3 @@ class Robot:
         self.teleop_control.close()
         self.navigator.close()
         self.pose.close()
-
-
-def _failure_message(state, nav):
-    target = repr(nav["target"]) if nav["target"] else "the goal"
-    if state in ("canceled", "canceling"):
-        return "The goal to {} was canceled before the robot arrived.".format(target)
-    if state == "rejected":
-        return "move_base rejected the goal to {}: is it inside the map?".format(target)
-    return "move_base aborted the goal to {}: no path was found or the robot got stuck.".format(target)
