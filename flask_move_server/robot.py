@@ -48,6 +48,10 @@ class Robot:
         nav = self.navigator.status()
         raise NavigationFailed(state, nav.get("message") or failure_sentence(state, nav["target"]))
 
+    def navigation_status(self):
+        """The goal's state as ``/status`` shows it under ``navigation`` (the pose is not read)."""
+        return self.navigator.status()
+
     def stop(self):
         """Cancel the goal, end teleop, command zero velocity."""
         canceled = self.navigator.cancel()
@@ -84,6 +88,18 @@ class Robot:
         if self.estop.latched or self.shutting_down:
             self.stop()
             self._refuse_motion("goals and teleop are")
+
+    def engage_estop(self, source):
+        """Latch the e-stop: everything stops, goals and teleop are refused. True when newly latched."""
+        return self.estop.engage(source)
+
+    def release_estop(self):
+        """Lift the e-stop latch; True when it was latched; EStopHeld while the button is still pressed."""
+        return self.estop.release()
+
+    def estop_status(self):
+        """The latch's state, as ``/status`` shows it under ``estop``."""
+        return self.estop.status()
 
     def current_pose(self):
         """The robot's pose in the map frame now; NoPose when unknown or stale."""
