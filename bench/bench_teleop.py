@@ -126,10 +126,11 @@ def row(name, values):
 
 
 def our_server(n, tmp):
-    from flask_move_server import cli, config, waypoints
+    from flask_move_server import cli, config
     from flask_move_server.drive import make_drive
     from flask_move_server.drive.backends.sim import SimBackend
     from flask_move_server.ros.node import RosNode
+    from flask_move_server.waypoint_store import WaypointStore
     from flask_move_server.web import create_app
 
     cfg = config.Config()
@@ -145,7 +146,7 @@ def our_server(n, tmp):
     backend = SimBackend(cfg.drive)
     drive = make_drive(cfg.drive, node, cfg.ros.frames, backend=backend)
     robot = cli.build_robot(cfg, node, drive)
-    app = create_app(cfg, robot, waypoints.WaypointStore(cfg.waypoints.file))
+    app = create_app(cfg, robot, WaypointStore(cfg.waypoints.file))
     arrivals = Arrivals("bench/cmd_vel")
     with serving(app) as url:
         time.sleep(1.0)  # let the subscribers connect

@@ -147,12 +147,12 @@ class Server:
         self._stack = contextlib.ExitStack()
 
     def start(self):
-        from flask_move_server import waypoints
         from flask_move_server.http_server import HttpServer
+        from flask_move_server.waypoint_store import WaypointStore
         from flask_move_server.web import create_app
 
         stack = self._stack
-        store = waypoints.WaypointStore(self.config.waypoints.file, self.config.waypoints.lock_timeout)
+        store = WaypointStore(self.config.waypoints.file, self.config.waypoints.lock_timeout)
         robot = self._build_robot(stack)
         app = create_app(self.config, robot, store, token=self.config.resolved_token())
         self.http = HttpServer(app, self.config.server)

@@ -15,17 +15,15 @@ import traceback
 
 from flask_move_server import __version__
 from flask_move_server.api_client import DEFAULT_TIMEOUT, DEFAULT_URL, ExitStatus, RobotClient, dumps, waypoint_path
+from flask_move_server.client_text import LiveLine, describe_status, progress, waypoint_table, xy_yaw
 from flask_move_server.errors import ClientError
+from flask_move_server.goal_endings import failure_sentence
 
 POLL_PERIOD = 0.5  # s between GET /status while `goto --wait` follows a goal
 
-_GOAL_ENDINGS = {
-    "aborted": (ExitStatus.ABORTED, "move_base aborted the goal to {}: no path was found or the robot got stuck."),
-    "canceled": (ExitStatus.CANCELED, "the goal to {} was canceled before the robot arrived."),
-    "rejected": (ExitStatus.REJECTED, "move_base rejected the goal to {}: is it inside the map?"),
-    "canceling": (ExitStatus.CANCELED, "the goal to {} was canceled before the robot arrived."),
-    "idle": (ExitStatus.CANCELED, "the goal to {} is gone (the server restarted?)."),
-}
+# how a goal that ended without arriving exits (the sentence is goal_endings.failure_sentence)
+_GOAL_EXITS = {"canceled": ExitStatus.CANCELED, "canceling": ExitStatus.CANCELED, "idle": ExitStatus.CANCELED,
+               "rejected": ExitStatus.REJECTED}
 
 
 # goto, stop -----------------------------------------------------------------------
@@ -36,7 +34,7 @@ def cmd_goto(client, args):
     answer = client.post("/goto", {"name": args.name})
     goal = answer.get("goal") or {}
     if not args.wait:
-        _say("going to {} at ({}).".format(args.name, _xy_yaw(goal)))
+        _say("going to {} at ({}).".format(args.name, xy_yaw(goal)))
         return ExitStatus.OK
     return follow_goal(client, answer.get("goal_id"), args.name, args.wait_timeout)
 
@@ -44,7 +42,7 @@ def cmd_goto(client, args):
 def follow_goal(client, goal_id, name, timeout=None):
     """Poll /status with a live line until goal ``goal_id`` ends; its exit status."""
     deadline = None if timeout is None else time.monotonic() + timeout
-    live = _LiveLine(sys.stderr)
+    live = LiveLine(sys.stderr)
     try:
         while True:
             nav = client.get("/status")["navigation"]
@@ -57,9 +55,8 @@ def follow_goal(client, goal_id, name, timeout=None):
                 return ExitStatus.OK
             if state != "active":
                 live.end()
-                status, message = _GOAL_ENDINGS.get(state, _GOAL_ENDINGS["aborted"])
-                raise ClientError(message.format(name), status)
-            live.show(_progress(name, nav))
+                raise ClientError(failure_sentence(state, name), _GOAL_EXITS.get(state, ExitStatus.ABORTED))
+            live.show(progress(name, nav))
             if deadline is not None and time.monotonic() >= deadline:
                 live.end()
                 raise ClientError("still moving to {} after {:g} s; the goal goes on ('robotctl stop' "
@@ -70,35 +67,6 @@ def follow_goal(client, goal_id, name, timeout=None):
         client.post("/stop")
         _say("interrupted: the robot was stopped.", sys.stderr)
         return ExitStatus.INTERRUPTED
-
-
-def _progress(name, nav):
-    distance = nav.get("distance_remaining")
-    left = "distance unknown" if distance is None else "{:.2f} m to go".format(distance)
-    return "{}: {}, {}".format(name, nav.get("state"), left)
-
-
-class _LiveLine:
-    """One status line rewritten in place on a terminal, a line per change otherwise."""
-
-    def __init__(self, stream):
-        self._stream = stream
-        self._tty = stream.isatty()
-        self._last = None
-
-    def show(self, text):
-        if self._tty:
-            self._stream.write("\r\033[K" + text)
-        elif text.split(",")[0] != (self._last or "").split(",")[0]:
-            self._stream.write(text + "\n")
-        self._stream.flush()
-        self._last = text
-
-    def end(self):
-        if self._tty and self._last is not None:
-            self._stream.write("\n")
-            self._stream.flush()
-        self._last = None
 
 
 def cmd_stop(client, args):
@@ -152,61 +120,6 @@ def cmd_status(client, args):
     return ExitStatus.OK
 
 
-def describe_status(data, url):
-    """The lines of ``robotctl status``."""
-    ros = data.get("ros") or {}
-    pose = data.get("pose")
-    lines = ["robot:      {} (ROS {})".format(url, ros.get("state", "?"))]
-    if pose:
-        lines.append("pose:       {} in {}, {:.1f} s old ({})".format(
-            _xy_yaw(pose), pose.get("frame"), pose.get("age") or 0.0, pose.get("source", "tf")))
-    else:
-        lines.append("pose:       unknown (no tf map -> base_link, no /amcl_pose)")
-    lines.append("navigation: " + _describe_navigation(data.get("navigation") or {}))
-    lines.append("teleop:     " + _describe_teleop(data.get("teleop") or {}))
-    motors = data.get("motors") or {}
-    lines.append("motors:     {} left {:+.2f} right {:+.2f}".format(
-        motors.get("backend", "?"), motors.get("left") or 0.0, motors.get("right") or 0.0))
-    if "estop" in data:
-        lines.append("e-stop:     " + _describe_estop(data["estop"] or {}))
-    problem = (data.get("waypoints") or {}).get("problem")
-    if problem:
-        lines.append("waypoints:  PROBLEM: " + problem)
-    return lines
-
-
-def _describe_navigation(nav):
-    state = nav.get("state", "idle")
-    if state == "idle":
-        return "idle"
-    target = nav.get("target") or "({})".format(_xy_yaw(nav.get("goal") or {}))
-    text = "{} -> {}".format(state, target)
-    if state == "active" and nav.get("distance_remaining") is not None:
-        text += ", {:.2f} m to go".format(nav["distance_remaining"])
-    return text
-
-
-def _describe_estop(estop):
-    if not estop.get("latched"):
-        return "off"
-    return "LATCHED by {} since {} ('robotctl estop release' lifts it)".format(
-        estop.get("source") or "?", estop.get("since") or "?")
-
-
-def _describe_teleop(teleop):
-    if not teleop.get("active"):
-        return "idle"
-    return "{:+.2f} m/s, {:+.2f} rad/s for {:.1f} s more".format(
-        teleop.get("linear", 0.0), teleop.get("angular", 0.0), teleop.get("remaining") or 0.0)
-
-
-def _xy_yaw(pose):
-    if not pose:
-        return "?"
-    return "x {:.2f}, y {:.2f}, yaw {:.2f} rad ({:.0f} deg)".format(
-        pose.get("x", 0.0), pose.get("y", 0.0), pose.get("yaw", 0.0), math.degrees(pose.get("yaw", 0.0)))
-
-
 # waypoints -------------------------------------------------------------------------
 
 
@@ -233,18 +146,8 @@ def _add_waypoint(client, args):
     body = {"from": "current"} if args.here else dict(zip(("x", "y", "yaw"), args.coords))
     answer = client.put(waypoint_path(args.name), body)
     _say("{} {} at ({}).".format("added" if answer.get("created") else "moved", args.name,
-                                 _xy_yaw(answer.get("waypoint"))))
+                                 xy_yaw(answer.get("waypoint"))))
     return ExitStatus.OK
-
-
-def waypoint_table(waypoints):
-    """Aligned rows: name, x, y, yaw (rad and degrees)."""
-    width = max(4, max(len(wp["name"]) for wp in waypoints))
-    rows = ["{:<{w}}  {:>8}  {:>8}  {:>7}  {:>5}".format("NAME", "X [m]", "Y [m]", "YAW", "[deg]", w=width)]
-    for wp in waypoints:
-        rows.append("{:<{w}}  {:>8.2f}  {:>8.2f}  {:>7.2f}  {:>5.0f}".format(
-            wp["name"], wp["x"], wp["y"], wp["yaw"], math.degrees(wp["yaw"]), w=width))
-    return rows
 
 
 # discover ---------------------------------------------------------------------------

@@ -2,9 +2,9 @@
 
 The client side of :mod:`flask_move_server.mdns`. API (used by ``robotctl``):
 
-``discover(timeout=3.0) -> list of Robot``
+``discover(timeout=3.0) -> list of FoundRobot``
     Browse ``_flask-move._tcp.local.`` for ``timeout`` seconds and return every
-    robot that answered, sorted by name: ``Robot(name, host, addresses, port,
+    robot that answered, sorted by name: ``FoundRobot(name, host, addresses, port,
     token_required, version, api_version)``; ``robot.url`` is its base URL
     (``http://robot.local:5000``). Returns ``[]`` when none answers.
 
@@ -23,28 +23,27 @@ The client side of :mod:`flask_move_server.mdns`. API (used by ``robotctl``):
 
 The queries are one-shot ("legacy unicast", RFC 6762 section 6.7): sent from an
 ephemeral port to 224.0.0.251:5353 on every IPv4 interface, answered straight
-back by any responder (python-zeroconf, avahi, Bonjour). The packet codec below
-is pure and tiny on purpose: it needs no zeroconf internals, which change
-between zeroconf 0.47 and the newest release.
+back by any responder (python-zeroconf, avahi, Bonjour). The packet codec is
+:mod:`flask_move_server.dns_wire` (pure); this module holds the sockets and the
+browsing.
 """
 
 import collections
-import ipaddress
 import random
 import select
 import socket
-import struct
 import time
+
+from flask_move_server.dns_wire import TYPE_A, TYPE_AAAA, addresses_of, build_query, local_name, parse_records
 
 OWN_SERVICE_TYPE = "_flask-move._tcp.local."
 MDNS_GROUP = "224.0.0.251"
 MDNS_PORT = 5353
-TYPE_A, TYPE_SRV, TYPE_AAAA, CLASS_IN = 1, 33, 28, 1
 QUERY_RESEND = 1.0
 
 
-class Robot(collections.namedtuple("Robot", "name host addresses port token_required version api_version")):
-    """One robot found on the LAN."""
+class FoundRobot(collections.namedtuple("FoundRobot", "name host addresses port token_required version api_version")):
+    """One robot found on the LAN (what its mDNS service record says; not the Robot facade)."""
 
     __slots__ = ()
 
@@ -52,89 +51,6 @@ class Robot(collections.namedtuple("Robot", "name host addresses port token_requ
     def url(self):
         """The API's base URL, by host name (``http://robot.local:5000``)."""
         return "http://{}:{}".format(self.host, self.port)
-
-
-# ---- the wire format (pure) -------------------------------------------------
-
-
-def local_name(hostname):
-    """``robot.local`` / ``robot.local.`` -> ``robot.local.``; None for other names."""
-    name = hostname.strip().rstrip(".").lower()
-    if not name.endswith(".local") or name == ".local":
-        return None
-    return name + "."
-
-
-def build_query(questions, query_id):
-    """A DNS query packet asking each (name, type) of ``questions``."""
-    packet = struct.pack("!HHHHHH", query_id, 0, len(questions), 0, 0, 0)
-    for name, type_ in questions:
-        packet += encode_name(name) + struct.pack("!HH", type_, CLASS_IN)
-    return packet
-
-
-def encode_name(name):
-    """``robot.local.`` in DNS wire form (length-prefixed labels, no compression)."""
-    labels = [label.encode("utf-8") for label in name.rstrip(".").split(".")]
-    if any(not 0 < len(label) < 64 for label in labels):
-        raise ValueError("not a valid DNS name: {!r}".format(name))
-    return b"".join(struct.pack("!B", len(label)) + label for label in labels) + b"\0"
-
-
-def parse_records(packet, query_id=None):
-    """(name, type, rdata bytes) of every record in a DNS response (answers and additionals)."""
-    try:
-        qid, flags, qd, an, ns, ar = struct.unpack_from("!HHHHHH", packet)
-        if not flags & 0x8000 or (query_id is not None and qid != query_id):
-            return []
-        offset = 12
-        for _ in range(qd):
-            offset = _read_name(packet, offset)[1] + 4
-        records = []
-        for _ in range(an + ns + ar):
-            rname, offset = _read_name(packet, offset)
-            rtype, _rclass, _ttl, length = struct.unpack_from("!HHIH", packet, offset)
-            offset += 10
-            records.append((rname, rtype, packet[offset:offset + length]))
-            offset += length
-        return records
-    except (struct.error, IndexError, UnicodeDecodeError, ValueError):
-        return []
-
-
-def addresses_of(records, name):
-    """The A/AAAA addresses for ``name`` among ``records``, in order, without repeats."""
-    found = []
-    for rname, rtype, rdata in records:
-        if rname.lower() == name.lower() and (rtype, len(rdata)) in ((TYPE_A, 4), (TYPE_AAAA, 16)):
-            address = str(ipaddress.ip_address(rdata))
-            if address not in found:
-                found.append(address)
-    return found
-
-
-def parse_addresses(packet, name, query_id=None):
-    """The A/AAAA addresses for ``name`` in a DNS response."""
-    return addresses_of(parse_records(packet, query_id), name)
-
-
-def _read_name(packet, offset):
-    """(dotted name with trailing dot, offset after it), following compression pointers."""
-    labels, end, jumps = [], None, 0
-    while True:
-        length = packet[offset]
-        if length & 0xC0 == 0xC0:
-            jumps += 1
-            if jumps > 32:
-                raise ValueError("DNS name pointer loop")
-            if end is None:
-                end = offset + 2
-            offset = ((length & 0x3F) << 8) | packet[offset + 1]
-        elif length == 0:
-            return ".".join(labels) + ".", end if end is not None else offset + 1
-        else:
-            labels.append(packet[offset + 1:offset + 1 + length].decode("utf-8"))
-            offset += 1 + length
 
 
 # ---- asking the network -----------------------------------------------------
@@ -264,10 +180,10 @@ def _collector(names):
 
 
 def robot_from_service(service_type, name, info):
-    """A :class:`Robot` from a resolved zeroconf ServiceInfo."""
+    """A :class:`FoundRobot` from a resolved zeroconf ServiceInfo."""
     props = {_text(k): _text(v) for k, v in info.properties.items()}
     instance = name[: -len(service_type) - 1] if name.endswith("." + service_type) else name
-    return Robot(
+    return FoundRobot(
         name=instance,
         host=(info.server or "").rstrip("."),
         addresses=tuple(info.parsed_addresses()),

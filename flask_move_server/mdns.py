@@ -32,7 +32,7 @@ import os
 import socket
 import threading
 
-from flask_move_server import API_VERSION, __version__, discovery
+from flask_move_server import API_VERSION, __version__, discovery, dns_wire
 from flask_move_server.discovery import OWN_SERVICE_TYPE, interface_addresses
 
 log = logging.getLogger(__name__)
@@ -121,17 +121,17 @@ def avahi_running(pid_file=AVAHI_PID_FILE):
 
 def conflict_questions(hostname, instance):
     """The questions whose answers reveal a clash: the host's A record, the instances' SRV records."""
-    questions = [("{}.{}".format(instance, type_), discovery.TYPE_SRV) for type_ in SERVICE_TYPES]
+    questions = [("{}.{}".format(instance, type_), dns_wire.TYPE_SRV) for type_ in SERVICE_TYPES]
     if hostname is not None:
-        questions.append((hostname + ".local.", discovery.TYPE_A))
+        questions.append((hostname + ".local.", dns_wire.TYPE_A))
     return questions
 
 
 def conflicts(records, hostname, instance, our_addresses):
     """(addresses of other devices answering for ``hostname``.local, whether ``instance`` is taken)."""
-    others = [a for a in discovery.addresses_of(records, hostname + ".local.") if a not in our_addresses]
+    others = [a for a in dns_wire.addresses_of(records, hostname + ".local.") if a not in our_addresses]
     names = {"{}.{}".format(instance, type_).lower() for type_ in SERVICE_TYPES}
-    taken = any(rtype == discovery.TYPE_SRV and rname.lower() in names for rname, rtype, _ in records)
+    taken = any(rtype == dns_wire.TYPE_SRV and rname.lower() in names for rname, rtype, _ in records)
     return others, taken
 
 

@@ -9,6 +9,7 @@ e-stop latch stops everything and refuses goals and teleop until released).
 
 from flask_move_server.drive.estop import EStop
 from flask_move_server.errors import NavigationFailed, ShuttingDown
+from flask_move_server.goal_endings import failure_sentence
 
 _SHUTTING_DOWN = "The server is shutting down: the robot was stopped. Send the command again once it is back."
 
@@ -45,7 +46,11 @@ class Robot:
         if state == "active":
             return False
         nav = self.navigator.status()
-        raise NavigationFailed(state, nav.get("message") or _failure_message(state, nav))
+        raise NavigationFailed(state, nav.get("message") or failure_sentence(state, nav["target"]))
+
+    def navigation_status(self):
+        """The goal's state as ``/status`` shows it under ``navigation`` (the pose is not read)."""
+        return self.navigator.status()
 
     def stop(self):
         """Cancel the goal, end teleop, command zero velocity."""
@@ -84,6 +89,18 @@ class Robot:
             self.stop()
             self._refuse_motion("goals and teleop are")
 
+    def engage_estop(self, source):
+        """Latch the e-stop: everything stops, goals and teleop are refused. True when newly latched."""
+        return self.estop.engage(source)
+
+    def release_estop(self):
+        """Lift the e-stop latch; True when it was latched; EStopHeld while the button is still pressed."""
+        return self.estop.release()
+
+    def estop_status(self):
+        """The latch's state, as ``/status`` shows it under ``estop``."""
+        return self.estop.status()
+
     def current_pose(self):
         """The robot's pose in the map frame now; NoPose when unknown or stale."""
         return self.pose.fresh(
@@ -117,12 +134,3 @@ class Robot:
         self.teleop_control.close()
         self.navigator.close()
         self.pose.close()
-
-
-def _failure_message(state, nav):
-    target = repr(nav["target"]) if nav["target"] else "the goal"
-    if state in ("canceled", "canceling"):
-        return "The goal to {} was canceled before the robot arrived.".format(target)
-    if state == "rejected":
-        return "move_base rejected the goal to {}: is it inside the map?".format(target)
-    return "move_base aborted the goal to {}: no path was found or the robot got stuck.".format(target)

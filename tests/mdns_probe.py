@@ -3,7 +3,7 @@
 ``python -m tests.mdns_probe COMMAND ARGS...`` prints JSON on stdout:
 
 - ``a-query NAME SECONDS``: a raw one-shot mDNS A query built and parsed with
-  zeroconf's own DNSOutgoing/DNSIncoming (independent of discovery.py's codec);
+  zeroconf's own DNSOutgoing/DNSIncoming (independent of dns_wire.py's codec);
   prints the addresses that answered.
 - ``browse TYPE``: a zeroconf ServiceBrowser; prints one line per event
   (``{"event": "added"|"updated"|"removed", "name", "port", "addresses"}``) until killed.

@@ -17,6 +17,7 @@ from geometry_msgs.msg import PoseWithCovarianceStamped
 
 from flask_move_server import client
 from flask_move_server.api_client import ExitStatus
+from flask_move_server.goal_endings import failure_sentence
 from tests.conftest import ROOT, serve, stop_process, wait_for
 from tests.standins.move_base import ABORT_X, HOLD_X, ScriptedMoveBase
 
@@ -46,7 +47,7 @@ def robot_server(ros_node, prefix, waypoints_file, token=None, move_base=True):
     from flask_move_server.ros.navigator import Navigator
     from flask_move_server.ros.pose import PoseTracker
     from flask_move_server.ros.teleop import Teleop
-    from flask_move_server.waypoints import WaypointStore
+    from flask_move_server.waypoint_store import WaypointStore
     from flask_move_server.web import create_app
 
     cfg = config_mod.Config()
@@ -153,7 +154,8 @@ def test_goto_wait_follows_the_goal_until_it_arrives(live, capsys):
 
 def test_goto_wait_exit_status_tells_how_the_goal_ended(live, capsys):
     assert robotctl(live, "goto", "nowhere", "--wait") == ExitStatus.ABORTED
-    assert "aborted the goal to nowhere" in capsys.readouterr().err
+    # the very sentence the server answers a failed /goto with wait
+    assert capsys.readouterr().err.endswith("robotctl: {}\n".format(failure_sentence("aborted", "nowhere")))
 
     assert robotctl(live, "goto", "forever", "--wait", "--timeout", "1") == ExitStatus.TIMEOUT
     assert "still moving to forever after 1 s" in capsys.readouterr().err

@@ -4,7 +4,8 @@ import os
 
 import pytest
 
-from flask_move_server import cli, config
+from flask_move_server import access, cli, config
+from flask_move_server.drive import backends
 from flask_move_server.errors import ConfigError
 from tests.conftest import ROOT, run_cli
 
@@ -87,23 +88,23 @@ def test_token_comes_from_the_env_var_first(tmp_path, monkeypatch):
     token_file = tmp_path / "token"
     token_file.write_text("from-file\n")
     loaded = config.load(_write(tmp_path, "server:\n  token_file: token\n"))
-    monkeypatch.delenv(config.TOKEN_ENV, raising=False)
+    monkeypatch.delenv(access.TOKEN_ENV, raising=False)
     assert loaded.resolved_token() == "from-file"
-    monkeypatch.setenv(config.TOKEN_ENV, "from-env")
+    monkeypatch.setenv(access.TOKEN_ENV, "from-env")
     assert loaded.resolved_token() == "from-env"
 
 
 def test_serving_the_network_without_a_token_is_refused_with_the_fix(monkeypatch):
-    monkeypatch.delenv(config.TOKEN_ENV, raising=False)
+    monkeypatch.delenv(access.TOKEN_ENV, raising=False)
     cfg = config.Config()
     with pytest.raises(ConfigError) as err:
-        config.check_serving_policy(cfg)
-    assert config.TOKEN_ENV in str(err.value) and "--insecure" in str(err.value)
+        access.check_serving_policy(cfg)
+    assert access.TOKEN_ENV in str(err.value) and "--insecure" in str(err.value)
     cfg.server.insecure = True
-    config.check_serving_policy(cfg)
+    access.check_serving_policy(cfg)
     loopback = config.Config()
     loopback.server.host = "127.0.0.1"
-    config.check_serving_policy(loopback)
+    access.check_serving_policy(loopback)
 
 
 def test_flags_override_the_file(tmp_path):
@@ -125,7 +126,7 @@ def test_the_server_exits_2_on_a_bad_config_naming_file_key_and_reason(tmp_path)
 
 
 def test_the_server_refuses_the_network_without_a_token():
-    proc = run_cli("--host", "0.0.0.0", "--port", "0", env={config.TOKEN_ENV: ""})
+    proc = run_cli("--host", "0.0.0.0", "--port", "0", env={access.TOKEN_ENV: ""})
     _, err = proc.communicate(timeout=30)
     assert proc.returncode == 2
     assert "refusing to serve 0.0.0.0 without a token" in err and "--insecure" in err
@@ -150,42 +151,42 @@ def _token_sources(tmp_path, text):
     in_file = config.load(_write(tmp_path, "server:\n  token_file: token\n"))
     in_config = config.Config()
     in_config.server.token = text
-    return {"server.token_file": in_file, "server.token": in_config, config.TOKEN_ENV: config.Config()}
+    return {"server.token_file": in_file, "server.token": in_config, access.TOKEN_ENV: config.Config()}
 
 
-@pytest.mark.parametrize("key", ["server.token_file", "server.token", config.TOKEN_ENV])
+@pytest.mark.parametrize("key", ["server.token_file", "server.token", access.TOKEN_ENV])
 def test_every_token_source_strips_whitespace_the_same_way(tmp_path, monkeypatch, key):
-    monkeypatch.delenv(config.TOKEN_ENV, raising=False)
+    monkeypatch.delenv(access.TOKEN_ENV, raising=False)
     cfg = _token_sources(tmp_path, "  s3cret \t\n")[key]
-    if key == config.TOKEN_ENV:
-        monkeypatch.setenv(config.TOKEN_ENV, "  s3cret \t\n")
+    if key == access.TOKEN_ENV:
+        monkeypatch.setenv(access.TOKEN_ENV, "  s3cret \t\n")
     assert cfg.resolved_token() == "s3cret"
 
 
 @pytest.mark.parametrize("key", ["server.token_file", "server.token"])
 def test_a_token_that_is_only_whitespace_is_a_config_error(tmp_path, monkeypatch, key):
-    monkeypatch.delenv(config.TOKEN_ENV, raising=False)
+    monkeypatch.delenv(access.TOKEN_ENV, raising=False)
     cfg = _token_sources(tmp_path, " \n")[key]
     with pytest.raises(ConfigError) as err:
-        config.check_serving_policy(cfg)
+        access.check_serving_policy(cfg)
     assert err.value.key == key and "empty" in err.value.reason
 
 
-@pytest.mark.parametrize("key", ["server.token_file", "server.token", config.TOKEN_ENV])
+@pytest.mark.parametrize("key", ["server.token_file", "server.token", access.TOKEN_ENV])
 def test_a_non_ascii_token_is_refused_without_showing_it(tmp_path, monkeypatch, key):
-    monkeypatch.delenv(config.TOKEN_ENV, raising=False)
+    monkeypatch.delenv(access.TOKEN_ENV, raising=False)
     cfg = _token_sources(tmp_path, "grüße-ü-token")[key]
-    if key == config.TOKEN_ENV:
-        monkeypatch.setenv(config.TOKEN_ENV, "grüße-ü-token")
+    if key == access.TOKEN_ENV:
+        monkeypatch.setenv(access.TOKEN_ENV, "grüße-ü-token")
     cfg.server.host = "127.0.0.1"  # refused at start-up even when serving this machine only
     with pytest.raises(ConfigError) as err:
-        config.check_serving_policy(cfg)
+        access.check_serving_policy(cfg)
     assert err.value.key == key and "not printable ASCII (at position 3)" in err.value.reason
     assert "grüße" not in str(err.value) and "secrets.token_urlsafe" in str(err.value)
 
 
 def test_the_server_refuses_a_non_ascii_token_at_start_up():
-    proc = run_cli("--host", "127.0.0.1", "--port", "0", env={config.TOKEN_ENV: "grüße-ü-token"})
+    proc = run_cli("--host", "127.0.0.1", "--port", "0", env={access.TOKEN_ENV: "grüße-ü-token"})
     _, err = proc.communicate(timeout=30)
     assert proc.returncode == 2
     assert "FLASK_MOVE_SERVER_TOKEN: the token has a character that is not printable ASCII" in err
@@ -193,15 +194,23 @@ def test_the_server_refuses_a_non_ascii_token_at_start_up():
 
 
 def test_a_token_file_others_can_read_is_warned_about(tmp_path, monkeypatch, caplog):
-    monkeypatch.delenv(config.TOKEN_ENV, raising=False)
+    monkeypatch.delenv(access.TOKEN_ENV, raising=False)
     cfg = _token_sources(tmp_path, "s3cret\n")["server.token_file"]
     token_file = tmp_path / "token"
     with caplog.at_level("WARNING", logger="flask_move_server"):
-        config.check_serving_policy(cfg)
+        access.check_serving_policy(cfg)
     assert not caplog.records
     token_file.chmod(0o644)
     with caplog.at_level("WARNING", logger="flask_move_server"):
-        config.check_serving_policy(cfg)
+        access.check_serving_policy(cfg)
     (record,) = caplog.records
     assert str(token_file) in record.getMessage() and "chmod 600" in record.getMessage()
     assert "0644" in record.getMessage()
+
+
+def test_every_registered_motor_backend_is_a_valid_drive_backend_and_no_other(tmp_path):
+    for name in backends.names():
+        assert config.load(_write(tmp_path, "drive:\n  backend: {}\n".format(name))).drive.backend == name
+    with pytest.raises(ConfigError) as err:
+        config.load(_write(tmp_path, "drive:\n  backend: pigpio\n"))
+    assert ", ".join(backends.names()) in str(err.value)

@@ -8,7 +8,7 @@ import sys
 import pytest
 from zeroconf import DNSAddress, DNSIncoming, DNSOutgoing, DNSService
 
-from flask_move_server import API_VERSION, __version__, config, discovery, mdns
+from flask_move_server import API_VERSION, __version__, config, discovery, dns_wire, mdns
 from flask_move_server.errors import ConfigError
 
 INTERFACES = [
@@ -43,7 +43,7 @@ def test_records_become_zeroconf_service_infos_that_a_client_reads_back_as_a_rob
     (record, _) = mdns.service_records("robot", "robot", 5000, ["192.168.1.20", "10.0.0.5"], True)
     info = mdns._service_info(record)
     robot = discovery.robot_from_service(record.type, record.name, info)
-    assert robot == discovery.Robot("robot", "robot.local", ("192.168.1.20", "10.0.0.5"), 5000, True,
+    assert robot == discovery.FoundRobot("robot", "robot.local", ("192.168.1.20", "10.0.0.5"), 5000, True,
                                     __version__, API_VERSION)
     assert robot.url == "http://robot.local:5000"
 
@@ -74,9 +74,9 @@ def test_avahi_counts_as_running_only_when_its_pid_file_names_a_live_process(tmp
 
 def test_conflicts_name_other_devices_on_our_host_name_and_a_taken_instance():
     records = [
-        ("robot.local.", discovery.TYPE_A, socket.inet_aton("192.168.1.7")),
-        ("robot.local.", discovery.TYPE_A, socket.inet_aton("192.168.1.20")),
-        ("Robot._http._tcp.local.", discovery.TYPE_SRV, b"\0" * 8),
+        ("robot.local.", dns_wire.TYPE_A, socket.inet_aton("192.168.1.7")),
+        ("robot.local.", dns_wire.TYPE_A, socket.inet_aton("192.168.1.20")),
+        ("Robot._http._tcp.local.", dns_wire.TYPE_SRV, b"\0" * 8),
     ]
     assert mdns.conflicts(records, "robot", "robot", ("192.168.1.20",)) == (["192.168.1.7"], True)
     assert mdns.conflicts(records, "robot", "office", ("192.168.1.7", "192.168.1.20")) == ([], False)
@@ -85,12 +85,12 @@ def test_conflicts_name_other_devices_on_our_host_name_and_a_taken_instance():
 
 def test_conflict_questions_skip_the_host_name_when_avahi_owns_it():
     assert mdns.conflict_questions(None, "robot") == [
-        ("robot._flask-move._tcp.local.", discovery.TYPE_SRV), ("robot._http._tcp.local.", discovery.TYPE_SRV)]
-    assert ("robot.local.", discovery.TYPE_A) in mdns.conflict_questions("robot", "robot")
+        ("robot._flask-move._tcp.local.", dns_wire.TYPE_SRV), ("robot._http._tcp.local.", dns_wire.TYPE_SRV)]
+    assert ("robot.local.", dns_wire.TYPE_A) in mdns.conflict_questions("robot", "robot")
 
 
 def test_the_query_packet_is_what_zeroconf_itself_parses():
-    packet = discovery.build_query([("robot.local.", discovery.TYPE_A), ("robot.local.", discovery.TYPE_AAAA)], 77)
+    packet = dns_wire.build_query([("robot.local.", dns_wire.TYPE_A), ("robot.local.", dns_wire.TYPE_AAAA)], 77)
     incoming = DNSIncoming(packet)
     assert incoming.id == 77 and incoming.is_query()
     assert [(q.name, q.type) for q in incoming.questions] == [("robot.local.", 1), ("robot.local.", 28)]
@@ -110,13 +110,13 @@ def test_addresses_are_read_from_a_zeroconf_response_with_compressed_names():
         DNSAddress("ROBOT.local.", 28, 1, 120, socket.inet_pton(socket.AF_INET6, "2001:db8::7")),
         DNSAddress("other.local.", 1, 1, 120, socket.inet_aton("10.9.9.9")),
     ])
-    assert discovery.parse_addresses(packet, "robot.local.", 77) == ["10.1.2.3", "2001:db8::7"]
-    assert discovery.parse_addresses(packet, "robot.local.", 78) == []
-    assert discovery.parse_addresses(packet[:40], "robot.local.", 77) == []
+    assert dns_wire.parse_addresses(packet, "robot.local.", 77) == ["10.1.2.3", "2001:db8::7"]
+    assert dns_wire.parse_addresses(packet, "robot.local.", 78) == []
+    assert dns_wire.parse_addresses(packet[:40], "robot.local.", 77) == []
 
 
 def test_a_query_is_not_taken_for_an_answer():
-    assert discovery.parse_addresses(discovery.build_query([("robot.local.", 1)], 5), "robot.local.") == []
+    assert dns_wire.parse_addresses(dns_wire.build_query([("robot.local.", 1)], 5), "robot.local.") == []
 
 
 @pytest.mark.parametrize("name, expected", [
@@ -124,7 +124,7 @@ def test_a_query_is_not_taken_for_an_answer():
     (".local", None),
 ])
 def test_only_local_names_are_resolved_over_mdns(name, expected):
-    assert discovery.local_name(name) == expected
+    assert dns_wire.local_name(name) == expected
 
 
 def test_resolving_a_non_local_name_returns_none_without_asking():

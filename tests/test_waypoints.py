@@ -11,9 +11,11 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from flask_move_server import waypoint_store
 from flask_move_server import waypoints as wpmod
 from flask_move_server.errors import BadWaypoint, UnknownWaypoint, WaypointFileError
-from flask_move_server.waypoints import Waypoint, WaypointStore, make_waypoint
+from flask_move_server.waypoint_store import WaypointStore
+from flask_move_server.waypoints import Waypoint, make_waypoint
 
 SEED = textwrap.dedent("""\
     waypoints:
@@ -179,7 +181,7 @@ def test_save_failure_leaves_store_unchanged_on_full_disk(seed_file, monkeypatch
     def disk_full(path, text, backup_text=None):
         raise OSError(28, "No space left on device")
 
-    monkeypatch.setattr(wpmod.waypoints_file, "atomic_write", disk_full)
+    monkeypatch.setattr(waypoint_store.waypoints_file, "atomic_write", disk_full)
     with pytest.raises(WaypointFileError, match="No space left"):
         store.put(make_waypoint("porch", 1, 1, 1))
     assert "porch" not in [w.name for w in store.all()]
@@ -187,7 +189,8 @@ def test_save_failure_leaves_store_unchanged_on_full_disk(seed_file, monkeypatch
 
 WRITER = textwrap.dedent("""\
     import sys
-    from flask_move_server.waypoints import WaypointStore, make_waypoint
+    from flask_move_server.waypoint_store import WaypointStore
+    from flask_move_server.waypoints import make_waypoint
     path, prefix, count = sys.argv[1], sys.argv[2], int(sys.argv[3])
     store = WaypointStore(path)
     for i in range(count):

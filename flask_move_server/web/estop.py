@@ -13,19 +13,19 @@ from flask_move_server.web.body import json_object
 estop = Blueprint("estop", __name__)
 
 
-def _latch():
-    return current_app.extensions["flask_move_server"]["robot"].estop
+def _robot():
+    return current_app.extensions["flask_move_server"]["robot"]
 
 
 @estop.route("/estop", methods=["POST"])
 def engage():
     # No body check: a stop is never refused for what came with it.
-    newly = _latch().engage("api")
-    return jsonify({"status": "ok", "engaged": newly, "estop": _latch().status()})
+    newly = _robot().engage_estop("api")
+    return jsonify({"status": "ok", "engaged": newly, "estop": _robot().estop_status()})
 
 
 @estop.route("/estop/release", methods=["POST"])
 def release():
     json_object((), required=False)
-    was = _latch().release()
-    return jsonify({"status": "ok", "released": was, "estop": _latch().status()})
+    was = _robot().release_estop()
+    return jsonify({"status": "ok", "released": was, "estop": _robot().estop_status()})

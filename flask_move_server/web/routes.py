@@ -39,7 +39,7 @@ def goto():
     if wait is None:
         return jsonify(body), 202
     reached = _robot().wait(seq, wait)
-    body["navigation"] = _robot().navigator.status()
+    body["navigation"] = _robot().navigation_status()
     return jsonify(body), 200 if reached else 202
 
 

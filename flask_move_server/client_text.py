@@ -1,0 +1,106 @@
+"""What ``robotctl`` prints: the status summary, the waypoint table, the live progress line.
+
+Pure text from the JSON the server answered, kept apart from the commands in
+:mod:`flask_move_server.client` so the words and layout can change without touching how
+requests are made (and be tested without a robot).
+"""
+
+import math
+
+
+def progress(name, nav):
+    """The live line while a goal is under way: name, state, distance left."""
+    distance = nav.get("distance_remaining")
+    left = "distance unknown" if distance is None else "{:.2f} m to go".format(distance)
+    return "{}: {}, {}".format(name, nav.get("state"), left)
+
+
+class LiveLine:
+    """One status line rewritten in place on a terminal, a line per change otherwise."""
+
+    def __init__(self, stream):
+        self._stream = stream
+        self._tty = stream.isatty()
+        self._last = None
+
+    def show(self, text):
+        """Show ``text``: in place on a terminal; as a new line when the state changed otherwise."""
+        if self._tty:
+            self._stream.write("\r\033[K" + text)
+        elif text.split(",")[0] != (self._last or "").split(",")[0]:
+            self._stream.write(text + "\n")
+        self._stream.flush()
+        self._last = text
+
+    def end(self):
+        """Finish the line (before anything else is printed)."""
+        if self._tty and self._last is not None:
+            self._stream.write("\n")
+            self._stream.flush()
+        self._last = None
+
+
+def describe_status(data, url):
+    """The lines of ``robotctl status``."""
+    ros = data.get("ros") or {}
+    pose = data.get("pose")
+    lines = ["robot:      {} (ROS {})".format(url, ros.get("state", "?"))]
+    if pose:
+        lines.append("pose:       {} in {}, {:.1f} s old ({})".format(
+            xy_yaw(pose), pose.get("frame"), pose.get("age") or 0.0, pose.get("source", "tf")))
+    else:
+        lines.append("pose:       unknown (no tf map -> base_link, no /amcl_pose)")
+    lines.append("navigation: " + _describe_navigation(data.get("navigation") or {}))
+    lines.append("teleop:     " + _describe_teleop(data.get("teleop") or {}))
+    motors = data.get("motors") or {}
+    lines.append("motors:     {} left {:+.2f} right {:+.2f}".format(
+        motors.get("backend", "?"), motors.get("left") or 0.0, motors.get("right") or 0.0))
+    if "estop" in data:
+        lines.append("e-stop:     " + _describe_estop(data["estop"] or {}))
+    problem = (data.get("waypoints") or {}).get("problem")
+    if problem:
+        lines.append("waypoints:  PROBLEM: " + problem)
+    return lines
+
+
+def _describe_navigation(nav):
+    state = nav.get("state", "idle")
+    if state == "idle":
+        return "idle"
+    target = nav.get("target") or "({})".format(xy_yaw(nav.get("goal") or {}))
+    text = "{} -> {}".format(state, target)
+    if state == "active" and nav.get("distance_remaining") is not None:
+        text += ", {:.2f} m to go".format(nav["distance_remaining"])
+    return text
+
+
+def _describe_estop(estop):
+    if not estop.get("latched"):
+        return "off"
+    return "LATCHED by {} since {} ('robotctl estop release' lifts it)".format(
+        estop.get("source") or "?", estop.get("since") or "?")
+
+
+def _describe_teleop(teleop):
+    if not teleop.get("active"):
+        return "idle"
+    return "{:+.2f} m/s, {:+.2f} rad/s for {:.1f} s more".format(
+        teleop.get("linear", 0.0), teleop.get("angular", 0.0), teleop.get("remaining") or 0.0)
+
+
+def xy_yaw(pose):
+    """``x 1.00, y 2.00, yaw 0.50 rad (29 deg)`` of a pose or goal dict; ``?`` when missing."""
+    if not pose:
+        return "?"
+    return "x {:.2f}, y {:.2f}, yaw {:.2f} rad ({:.0f} deg)".format(
+        pose.get("x", 0.0), pose.get("y", 0.0), pose.get("yaw", 0.0), math.degrees(pose.get("yaw", 0.0)))
+
+
+def waypoint_table(waypoints):
+    """Aligned rows: name, x, y, yaw (rad and degrees)."""
+    width = max(4, max(len(wp["name"]) for wp in waypoints))
+    rows = ["{:<{w}}  {:>8}  {:>8}  {:>7}  {:>5}".format("NAME", "X [m]", "Y [m]", "YAW", "[deg]", w=width)]
+    for wp in waypoints:
+        rows.append("{:<{w}}  {:>8.2f}  {:>8.2f}  {:>7.2f}  {:>5.0f}".format(
+            wp["name"], wp["x"], wp["y"], wp["yaw"], math.degrees(wp["yaw"]), w=width))
+    return rows

@@ -1,0 +1,24 @@
+"""Why a navigation goal ended without the robot arriving, in the one sentence everyone says.
+
+The server answers a ``/goto`` with ``wait`` that fails with it (409 ``navigation_failed``), and
+``robotctl goto --wait`` prints it when it sees the goal end in ``/status``; both read it here,
+so a user meets the same words whichever way they sent the goal. Pure: no rospy, no Flask.
+"""
+
+_SENTENCES = {
+    "aborted": "move_base aborted the goal{to}: no path was found or the robot got stuck.",
+    "rejected": "move_base rejected the goal{to}: is it inside the map?",
+    "canceled": "The goal{to} was canceled before the robot arrived.",
+    "canceling": "The goal{to} was canceled before the robot arrived.",
+    "idle": "The goal{to} is gone (the server restarted?).",
+}
+
+
+def failure_sentence(state, target=None):
+    """The sentence for a goal to ``target`` (a waypoint name, or None) that ended in ``state``.
+
+    Any state without a sentence of its own (``lost``, ``preempted``, ...) reads as aborted:
+    the robot did not arrive and nobody asked it to stop.
+    """
+    to = " to {!r}".format(target) if target else ""
+    return _SENTENCES.get(state, _SENTENCES["aborted"]).format(to=to)

@@ -1,0 +1,188 @@
+"""The waypoints of one YAML file, shared by the server's threads and by other processes.
+
+:class:`WaypointStore` owns the file: every change is saved before it is acknowledged (temp
+file in the same directory, fsync, rename, fsync of the directory, the previous version kept
+as ``.bak``), an ``fcntl`` lock serialises writers across processes (the server and
+``record-waypoints``), and a change made on disk by someone else (a text editor) is picked up
+before the next read or write instead of being overwritten. A file that would silently lose
+the last good waypoints (empty, cut short, no ``waypoints:``) is a problem to report, not a
+deletion: only ``waypoints: {}`` clears them. The file plumbing lives in
+:mod:`flask_move_server.waypoints_file`, the format in
+:mod:`flask_move_server.waypoints_format`. Pure: no rospy, no Flask.
+"""
+
+import contextlib
+import logging
+import os
+import threading
+
+from flask_move_server import waypoints_file
+from flask_move_server.errors import BadWaypoint, UnknownWaypoint, WaypointFileError
+from flask_move_server.waypoints import Waypoint, check_name, suggest
+from flask_move_server.waypoints_format import dump, entries_of, parse, waypoints_of
+
+log = logging.getLogger(__name__)
+
+
+class WaypointStore:
+    """The waypoints of one YAML file, safe to share between threads and processes.
+
+    Readers take only the in-process lock, never the cross-process file lock,
+    so a stuck ``record-waypoints`` holding the file lock cannot block them.
+    """
+
+    def __init__(self, path, lock_timeout=3.0):
+        self.path = os.path.abspath(path)
+        self.lock_timeout = lock_timeout
+        self._lock = threading.Lock()
+        self._waypoints = {}  # the last good set
+        self._good_text = None  # its file text: what .bak becomes on the next save
+        self._loaded = False
+        self._stamp = None
+        self._problem = None
+        waypoints_file.remove_leftovers(self.path, lock_timeout)
+        with self._lock:
+            self._refresh(strict=True)
+
+    # reading ---------------------------------------------------------------
+
+    def all(self):
+        """Every waypoint, in file order."""
+        with self._lock:
+            self._refresh()
+            return list(self._waypoints.values())
+
+    def get(self, name):
+        """The waypoint called ``name``; UnknownWaypoint with close names if none."""
+        check_name(name)
+        with self._lock:
+            self._refresh()
+            try:
+                return self._waypoints[name]
+            except KeyError:
+                raise UnknownWaypoint(name, suggest(name, self._waypoints))
+
+    @property
+    def problem(self):
+        """Why the file on disk cannot be loaded now (shown by /status), or None."""
+        with self._lock:
+            self._refresh()
+            return self._problem
+
+    # writing ---------------------------------------------------------------
+
+    def put(self, waypoint):
+        """Add or replace ``waypoint``; True when it is new. Saved before returning."""
+        with self._edit() as waypoints:
+            created = waypoint.name not in waypoints
+            waypoints[waypoint.name] = waypoint
+        return created
+
+    def delete(self, name):
+        """Remove the waypoint ``name``. Saved before returning."""
+        check_name(name)
+        with self._edit() as waypoints:
+            if name not in waypoints:
+                raise UnknownWaypoint(name, suggest(name, waypoints))
+            del waypoints[name]
+
+    def rename(self, old, new):
+        """Give waypoint ``old`` the name ``new``, keeping its place in the file."""
+        check_name(new)
+        with self._edit() as waypoints:
+            if old not in waypoints:
+                raise UnknownWaypoint(old, suggest(old, waypoints))
+            if new in waypoints and new != old:
+                raise BadWaypoint("A waypoint named {!r} exists already.".format(new))
+            items = [(new if k == old else k, v) for k, v in waypoints.items()]
+            waypoints.clear()
+            for k, v in items:
+                waypoints[k] = Waypoint(k, v.x, v.y, v.yaw)
+
+    def replace_all(self, new_waypoints):
+        """Replace every waypoint at once (undo in the recorder)."""
+        with self._edit() as waypoints:
+            waypoints.clear()
+            for wp in new_waypoints:
+                waypoints[wp.name] = wp
+
+    @contextlib.contextmanager
+    def _edit(self):
+        # The file lock first, with a timeout, and outside the in-process lock:
+        # readers never wait behind a writer that waits for another process.
+        with waypoints_file.file_lock(self.path + ".lock", self.lock_timeout), self._lock:
+            self._refresh(strict=True)
+            waypoints = dict(self._waypoints)
+            yield waypoints
+            self._save(waypoints)
+            self._waypoints = waypoints
+
+    # the file ----------------------------------------------------------------
+
+    def _refresh(self, strict=False):
+        """Reload when the file changed on disk; with ``strict``, refuse a broken file."""
+        stamp = waypoints_file.stamp(self.path)
+        if stamp == self._stamp and not (strict and self._problem):
+            return
+        try:
+            text = waypoints_file.read(self.path)
+            waypoints = self._load(text)
+        except WaypointFileError as exc:
+            self._stamp, self._problem = stamp, str(exc)
+            log.error("%s; still using the %d waypoints loaded before", exc, len(self._waypoints))
+            if strict:
+                raise WaypointFileError(
+                    "{}; nothing was changed. Fix the file, or put back the version before the last change "
+                    "(cp {p}.bak {p}), or write 'waypoints: {{}}' to it to delete every waypoint on "
+                    "purpose.".format(exc, p=self.path)
+                )
+            return
+        if self._stamp is not None:
+            log.info("reloaded %s: it changed on disk (%d waypoints)", self.path, len(waypoints))
+        self._waypoints, self._good_text, self._loaded = waypoints, text, True
+        self._stamp, self._problem = stamp, None
+
+    def _load(self, text):
+        """The waypoints of ``text``, or WaypointFileError when it is broken or would lose the last good set."""
+        entries = entries_of(text, self.path) if text is not None else None
+        known = len(self._waypoints) if self._loaded else _count_backup(self.path)
+        loss = _why_lost(text, entries, self._loaded) if known else None
+        if loss:
+            raise WaypointFileError("{} {}, but the last good version had {} waypoints".format(self.path, loss, known))
+        return waypoints_of(entries, self.path)
+
+    def _save(self, waypoints):
+        text = dump(waypoints.values())
+        try:
+            waypoints_file.atomic_write(self.path, text, backup_text=self._good_text)
+        except OSError as exc:
+            raise WaypointFileError("cannot save {}: {}; nothing was changed".format(self.path, exc.strerror or exc))
+        self._stamp, self._good_text = waypoints_file.stamp(self.path), text
+
+
+def _why_lost(text, entries, loaded):
+    """Why a file holding no or cut-short waypoints is not a deliberate deletion, or None.
+
+    Only ``waypoints: {}`` deletes everything on purpose. An empty file, one
+    without ``waypoints:`` or one not ending with the newline every save and
+    editor writes is what an in-place write in progress (or a failed
+    ``printf > file``) looks like. A missing file counts once one was loaded:
+    some editors remove the file for a moment while saving.
+    """
+    if text is None:
+        return "is missing" if loaded else None
+    if not text.strip():
+        return "is empty"
+    if not text.endswith("\n"):
+        return "does not end with a newline, so it looks cut short (a write in progress or interrupted)"
+    if entries is None:
+        return "holds no waypoints and does not say 'waypoints: {}'"
+    return None
+
+
+def _count_backup(path):
+    """How many waypoints ``path.bak`` holds (0 if none or unreadable): the reference at start-up."""
+    try:
+        return len(parse(waypoints_file.read(path + ".bak") or "", path + ".bak"))
+    except WaypointFileError:
+        return 0
