@@ -21,8 +21,7 @@ from geometry_msgs.msg import PoseWithCovarianceStamped, TransformStamped
 from nav_msgs.msg import OccupancyGrid, Odometry
 from sensor_msgs.msg import LaserScan
 
-from flask_move_server.geometry import Pose2D, quaternion_to_yaw, yaw_to_quaternion
-from flask_move_server.sim.body import compose, interpolate, inverse
+from flask_move_server.geometry import Pose2D, compose, interpolate, inverse, quaternion_to_yaw, yaw_to_quaternion
 
 log = logging.getLogger(__name__)
 
