@@ -6,7 +6,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from flask_move_server.config import DriveConfig
-from flask_move_server.drive.kinematics import DutyMap, Limits, SkidSteer, desaturate, integrate_pose
+from flask_move_server.drive.kinematics import DutyMap, Limits, SkidSteer, desaturate
 from flask_move_server.drive.motion import Motion
 from flask_move_server.drive.odometry import ENCODERS, Odometry, ticks_per_metre
 
@@ -84,22 +84,6 @@ def test_ramping_never_exceeds_speed_or_acceleration_limits(targets, accel, angu
         assert abs(new[0] - velocity[0]) <= accel * dt + 1e-12
         assert abs(new[1] - velocity[1]) <= angular_accel * dt + 1e-12
         velocity = new
-
-
-@relaxed
-@given(speeds, speeds, st.floats(0.001, 0.5), st.integers(2, 20))
-def test_exact_arc_integration_does_not_depend_on_the_step_size(linear, angular, dt, steps):
-    one = integrate_pose(0.0, 0.0, 0.0, linear, angular, dt * steps)
-    pose = (0.0, 0.0, 0.0)
-    for _ in range(steps):
-        pose = integrate_pose(*pose, linear, angular, dt)
-    assert all(math.isclose(a, b, abs_tol=1e-6) for a, b in zip(one, pose))
-
-
-def test_a_half_circle_ends_two_radii_to_the_side():
-    x, y, yaw = integrate_pose(0.0, 0.0, 0.0, 0.5, 0.5, math.pi / 0.5)  # radius 1 m
-    assert math.isclose(x, 0.0, abs_tol=1e-9) and math.isclose(y, 2.0, abs_tol=1e-9)
-    assert math.isclose(abs(yaw), math.pi, abs_tol=1e-9)
 
 
 def drive(motion, odometry, linear, angular, seconds, dt):

@@ -9,7 +9,7 @@ import yaml
 from flask_move_server.errors import ConfigError, PlanningFailed
 from flask_move_server.geometry import Pose2D
 from flask_move_server.sim import demo_map, occupancy
-from flask_move_server.sim.body import RobotBody, compose, inverse
+from flask_move_server.sim.body import RobotBody
 from flask_move_server.sim.costmap import LETHAL, Costmap
 from flask_move_server.sim.follower import FollowerLimits, PathFollower
 from flask_move_server.sim.laser import Laser
@@ -149,12 +149,6 @@ def test_the_body_follows_the_exact_arc(demo):
     for _ in range(40):  # a quarter circle of radius 0.5: v = 0.25, w = 0.5
         body.step(0.2, 0.3, math.pi / 40)
     assert (body.pose.x, body.pose.y, body.pose.yaw) == pytest.approx((0.5, 0.5, math.pi / 2), abs=1e-6)
-
-
-def test_pose_algebra_recovers_map_to_odom():
-    true, odom = Pose2D(1.0, 2.0, 0.5), Pose2D(-0.3, 0.4, -1.0)
-    map_to_odom = compose(true, inverse(odom))
-    assert compose(map_to_odom, odom) == pytest.approx(true)
 
 
 def test_the_laser_sees_the_walls_of_a_room(tmp_path):

@@ -1,8 +1,9 @@
-"""Skid-steer kinematics, motor duty mapping, ramping and pose integration. Pure.
+"""Skid-steer kinematics, motor duty mapping and ramping. Pure.
 
 Imports neither rospy nor RPi.GPIO, so the maths is tested on its own
 (tests/test_drive_kinematics.py) and shared by the base controller, the
-backends and the simulation.
+backends and the simulation. Integrating a pose along an arc is planar maths
+and lives in :mod:`flask_move_server.geometry` (``along_arc``).
 
 Conventions (REP-103): linear velocity ``v`` in m/s along x of ``base_link``,
 angular velocity ``w`` in rad/s counter-clockwise; wheel (side) speeds in m/s,
@@ -12,10 +13,7 @@ positive forward; duties are signed fractions of full PWM, -1..1.
 import math
 from dataclasses import dataclass
 
-
-def clamp(value, limit):
-    """``value`` limited to ``[-limit, limit]``."""
-    return max(-limit, min(limit, value))
+from flask_move_server.geometry import clamp
 
 
 @dataclass(frozen=True)
@@ -118,23 +116,3 @@ def _approach(current, target, max_step):
         return target
     return current + clamp(target - current, max_step)
 
-
-def integrate_pose(x, y, yaw, linear, angular, dt):
-    """The pose after moving at (linear, angular) for ``dt`` seconds from (x, y, yaw).
-
-    Exact along the arc; when the turn is near zero, second-order Runge-Kutta
-    (heading at the midpoint), which is exact for straight lines and avoids
-    dividing by a tiny angular velocity (as diff_drive_controller does).
-    """
-    distance = linear * dt
-    turn = angular * dt
-    if abs(turn) < 1e-6:
-        mid = yaw + turn / 2.0
-        return x + distance * math.cos(mid), y + distance * math.sin(mid), yaw + turn
-    radius = distance / turn
-    new_yaw = yaw + turn
-    return (
-        x + radius * (math.sin(new_yaw) - math.sin(yaw)),
-        y - radius * (math.cos(new_yaw) - math.cos(yaw)),
-        new_yaw,
-    )

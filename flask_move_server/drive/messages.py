@@ -2,10 +2,10 @@
 
 import rospy
 import tf2_ros
-from geometry_msgs.msg import TransformStamped, Twist
+from geometry_msgs.msg import Twist
 from nav_msgs.msg import Odometry as OdometryMsg
 
-from flask_move_server.geometry import yaw_to_quaternion
+from flask_move_server.ros.convert import transform_message, write_pose
 
 
 class OdometryPublisher:
@@ -22,7 +22,7 @@ class OdometryPublisher:
         stamp = rospy.Time.now()
         self._odom.publish(odometry_message(odometry, stamp, self.frames))
         if self._tf is not None:
-            self._tf.sendTransform(transform_message(odometry, stamp, self.frames))
+            self._tf.sendTransform(transform_message(odometry.pose, stamp, self.frames.odom, self.frames.base_link))
 
     def close(self):
         """Unsubscribe and unadvertise. Idempotent."""
@@ -36,23 +36,9 @@ def odometry_message(odometry, stamp, frames):
     msg.header.stamp = stamp
     msg.header.frame_id = frames.odom
     msg.child_frame_id = frames.base_link
-    msg.pose.pose.position.x, msg.pose.pose.position.y = odometry.x, odometry.y
-    q = msg.pose.pose.orientation
-    q.x, q.y, q.z, q.w = yaw_to_quaternion(odometry.yaw)
+    write_pose(msg.pose.pose, odometry.pose)
     msg.pose.covariance = odometry.pose_covariance()
     msg.twist.twist.linear.x = odometry.linear
     msg.twist.twist.angular.z = odometry.angular
     msg.twist.covariance = odometry.twist_covariance()
     return msg
-
-
-def transform_message(odometry, stamp, frames):
-    """The tf odom → base_link of ``odometry``."""
-    t = TransformStamped()
-    t.header.stamp = stamp
-    t.header.frame_id = frames.odom
-    t.child_frame_id = frames.base_link
-    t.transform.translation.x, t.transform.translation.y = odometry.x, odometry.y
-    r = t.transform.rotation
-    r.x, r.y, r.z, r.w = yaw_to_quaternion(odometry.yaw)
-    return t

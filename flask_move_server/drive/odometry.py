@@ -9,8 +9,7 @@ so AMCL and robot_localization weigh this odometry for what it is.
 
 import math
 
-from flask_move_server.drive.kinematics import integrate_pose
-from flask_move_server.geometry import normalize_angle
+from flask_move_server.geometry import Pose2D, along_arc, normalize_angle
 
 ENCODERS, OPEN_LOOP = "encoders", "open_loop"
 
@@ -27,7 +26,7 @@ class Odometry:
 
     def __init__(self, source=OPEN_LOOP):
         self.source = source
-        self.x = self.y = self.yaw = 0.0
+        self.pose = Pose2D(0.0, 0.0, 0.0)
         self.linear = self.angular = 0.0
         self.distance = 0.0  # metres travelled (path length), for the covariance
         self.rotation = 0.0  # radians turned (absolute), for the covariance
@@ -36,8 +35,7 @@ class Odometry:
         """Move at (linear, angular) for ``dt`` seconds (open loop)."""
         if dt <= 0:
             return
-        self.x, self.y, yaw = integrate_pose(self.x, self.y, self.yaw, linear, angular, dt)
-        self.yaw = normalize_angle(yaw)
+        self.pose = along_arc(self.pose, linear * dt, angular * dt)
         self.linear, self.angular = linear, angular
         self.distance += abs(linear) * dt
         self.rotation += abs(angular) * dt
@@ -46,12 +44,23 @@ class Odometry:
         """Move by the distances each side rolled (encoders) over ``dt`` seconds."""
         linear_distance = (left_distance + right_distance) / 2.0
         turn = (right_distance - left_distance) / track
-        self.x, self.y, yaw = integrate_pose(self.x, self.y, self.yaw, linear_distance, turn, 1.0)
-        self.yaw = normalize_angle(yaw)
+        self.pose = along_arc(self.pose, linear_distance, turn)
         if dt > 0:
             self.linear, self.angular = linear_distance / dt, turn / dt
         self.distance += abs(linear_distance)
         self.rotation += abs(turn)
+
+    @property
+    def x(self):
+        return self.pose.x
+
+    @property
+    def y(self):
+        return self.pose.y
+
+    @property
+    def yaw(self):
+        return self.pose.yaw
 
     def pose_covariance(self):
         """Row-major 6x6 covariance of (x, y, z, roll, pitch, yaw)."""

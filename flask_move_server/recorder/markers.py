@@ -8,7 +8,7 @@ marker: a removed or renamed waypoint disappears instead of lingering.
 import rospy
 from visualization_msgs.msg import Marker, MarkerArray
 
-from flask_move_server.geometry import yaw_to_quaternion
+from flask_move_server.ros.convert import write_pose
 
 ARROW_NS, LABEL_NS = "waypoints", "waypoint_names"
 
@@ -36,8 +36,7 @@ def _base(marker_type, ns, index, wp, frame):
 
 def _arrow(index, wp, frame):
     m = _base(Marker.ARROW, ARROW_NS, index, wp, frame)
-    o = m.pose.orientation
-    o.x, o.y, o.z, o.w = yaw_to_quaternion(wp.yaw)
+    write_pose(m.pose, wp)  # a Waypoint has the x, y and yaw of a pose
     m.pose.position.z = 0.05
     m.scale.x, m.scale.y, m.scale.z = 0.5, 0.08, 0.08
     m.color.r, m.color.g, m.color.b = 0.1, 0.6, 1.0

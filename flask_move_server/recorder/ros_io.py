@@ -5,18 +5,15 @@ so it can run beside other parts in one process. Clicks arrive on rospy's
 threads and are only queued here; the session saves them from its own thread.
 """
 
-import math
 import queue
 
 import rospy
-import tf2_ros
 from geometry_msgs.msg import PointStamped, PoseStamped
 
 from flask_move_server.config import FramesConfig
-from flask_move_server.geometry import Pose2D, normalize_angle, quaternion_to_yaw
+from flask_move_server.geometry import Pose2D, compose
+from flask_move_server.ros.convert import TF_ERRORS, pose_from_msg, pose_from_transform
 from flask_move_server.ros.pose import PoseTracker
-
-_TF_ERRORS = (tf2_ros.LookupException, tf2_ros.ConnectivityException, tf2_ros.ExtrapolationException)
 
 
 class Click:
@@ -67,15 +64,14 @@ class RosSide:
         self._queue_click(msg.header.frame_id, msg.point.x, msg.point.y, None, "Publish Point")
 
     def _on_goal(self, msg):
-        o = msg.pose.orientation
-        yaw = quaternion_to_yaw(o.x, o.y, o.z, o.w)
-        self._queue_click(msg.header.frame_id, msg.pose.position.x, msg.pose.position.y, yaw, "2D Nav Goal")
+        pose = pose_from_msg(msg.pose)
+        self._queue_click(msg.header.frame_id, pose.x, pose.y, pose.yaw, "2D Nav Goal")
 
     def _queue_click(self, frame, x, y, yaw, tool):
         frame = (frame or self.map_frame).lstrip("/")
         try:
             pose = self._in_map(frame, x, y, yaw or 0.0)
-        except _TF_ERRORS:
+        except TF_ERRORS:
             self.problems.put("A click in frame '{}' cannot be placed in '{}' (no tf between them): set "
                               "RViz's Fixed Frame to '{}'.".format(frame, self.map_frame, self.map_frame))
             return
@@ -85,10 +81,7 @@ class RosSide:
         if frame == self.map_frame.lstrip("/"):
             return Pose2D(x, y, yaw)
         t = self._buffer.lookup_transform(self.map_frame, frame, rospy.Time(0))
-        r, p = t.transform.rotation, t.transform.translation
-        turn = quaternion_to_yaw(r.x, r.y, r.z, r.w)
-        c, s = math.cos(turn), math.sin(turn)
-        return Pose2D(p.x + c * x - s * y, p.y + s * x + c * y, normalize_angle(yaw + turn))
+        return compose(pose_from_transform(t.transform), Pose2D(x, y, yaw))
 
     def close(self):
         """Unsubscribe. Idempotent."""

@@ -21,7 +21,7 @@ from geometry_msgs.msg import PoseStamped
 from move_base_msgs.msg import MoveBaseAction, MoveBaseGoal
 
 from flask_move_server.errors import NavigationUnavailable, RosUnavailable
-from flask_move_server.geometry import Pose2D, quaternion_to_yaw, yaw_to_quaternion
+from flask_move_server.ros.convert import pose_from_msg, pose_stamped
 
 log = logging.getLogger(__name__)
 
@@ -89,7 +89,7 @@ class Navigator:
                 feedback_cb=lambda feedback: self._feedback(seq, feedback),
             )
         else:
-            self._goal_pub.publish(_pose_stamped(goal.pose, self._frame))
+            self._goal_pub.publish(pose_stamped(goal.pose, self._frame, rospy.Time.now()))
         log.info("goal %d: %s %s", seq, goal.target or "pose", goal.pose.as_dict())
         return seq
 
@@ -225,9 +225,7 @@ class Navigator:
             log.warning("goal %d: could not send its cancel: %s", seq, exc)
 
     def _feedback(self, seq, feedback):
-        p = feedback.base_position.pose
-        pose = Pose2D(p.position.x, p.position.y, quaternion_to_yaw(
-            p.orientation.x, p.orientation.y, p.orientation.z, p.orientation.w))
+        pose = pose_from_msg(feedback.base_position.pose)
         with self._cond:
             if seq == self._seq:
                 self._feedback_pose = pose
@@ -242,18 +240,7 @@ class Navigator:
         return None if here is None else round(here.distance_to(goal.pose), 3)
 
 
-def _pose_stamped(pose, frame):
-    msg = PoseStamped()
-    msg.header.frame_id = frame
-    msg.header.stamp = rospy.Time.now()
-    msg.pose.position.x, msg.pose.position.y = pose.x, pose.y
-    q = yaw_to_quaternion(pose.yaw)
-    o = msg.pose.orientation
-    o.x, o.y, o.z, o.w = q
-    return msg
-
-
 def _move_base_goal(pose, frame):
     goal = MoveBaseGoal()
-    goal.target_pose = _pose_stamped(pose, frame)
+    goal.target_pose = pose_stamped(pose, frame, rospy.Time.now())
     return goal

@@ -8,7 +8,8 @@ import tf2_ros
 from geometry_msgs.msg import PoseWithCovarianceStamped
 
 from flask_move_server.errors import NoPose
-from flask_move_server.geometry import Pose2D, quaternion_to_yaw
+from flask_move_server.geometry import Pose2D
+from flask_move_server.ros.convert import TF_ERRORS, pose_from_msg, pose_from_transform
 
 
 @dataclass(frozen=True)
@@ -86,15 +87,12 @@ class PoseTracker:
             return None
         try:
             t = self._buffer.lookup_transform(self._frames.map, self._frames.base_link, rospy.Time(0))
-        except (tf2_ros.LookupException, tf2_ros.ConnectivityException, tf2_ros.ExtrapolationException):
+        except TF_ERRORS:
             return None
-        r, p = t.transform.rotation, t.transform.translation
-        pose = Pose2D(p.x, p.y, quaternion_to_yaw(r.x, r.y, r.z, r.w))
-        return PoseReading(pose, self._frames.map, t.header.stamp.to_sec(), "tf")
+        return PoseReading(pose_from_transform(t.transform), self._frames.map, t.header.stamp.to_sec(), "tf")
 
     def _on_amcl(self, msg):
-        p, o = msg.pose.pose.position, msg.pose.pose.orientation
-        pose = Pose2D(p.x, p.y, quaternion_to_yaw(o.x, o.y, o.z, o.w))
+        pose = pose_from_msg(msg.pose.pose)
         self._amcl = PoseReading(pose, msg.header.frame_id or self._frames.map, msg.header.stamp.to_sec(), "amcl_pose")
 
     def as_dict(self, reading=None):

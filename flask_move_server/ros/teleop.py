@@ -15,12 +15,10 @@ import rospy
 from geometry_msgs.msg import Twist
 
 from flask_move_server.errors import RosUnavailable
+from flask_move_server.geometry import clamp
+from flask_move_server.ros.convert import twist
 
 log = logging.getLogger(__name__)
-
-
-def clamp(value, limit):
-    return max(-limit, min(limit, value))
 
 
 class Teleop:
@@ -128,10 +126,4 @@ class Teleop:
 
     def _publish(self, linear, angular):
         self._last_publish = time.monotonic()
-        self._pub.publish(_twist(linear, angular))
-
-
-def _twist(linear, angular):
-    msg = Twist()
-    msg.linear.x, msg.angular.z = linear, angular
-    return msg
+        self._pub.publish(twist(linear, angular))

@@ -11,7 +11,7 @@ bumper-stopped base would). Pure: no rospy.
 import math
 import threading
 
-from flask_move_server.geometry import Pose2D, normalize_angle
+from flask_move_server.geometry import Pose2D, along_arc
 
 
 class RobotBody:
@@ -40,7 +40,7 @@ class RobotBody:
             pose = self._pose
             bumped = False
             for _ in range(pieces):
-                moved = _arc(pose, v * h, w * h)
+                moved = along_arc(pose, v * h, w * h)
                 if self.costmap.lethal_at(moved.x, moved.y):
                     bumped = True
                     moved = Pose2D(pose.x, pose.y, moved.yaw)
@@ -54,32 +54,3 @@ class RobotBody:
         with self._lock:
             self._pose = pose
 
-
-def _arc(pose, ds, dth):
-    """``pose`` after travelling ``ds`` metres while turning ``dth`` radians (exact arc, midpoint when straight)."""
-    if abs(dth) < 1e-6:
-        mid = pose.yaw + dth / 2.0
-        x, y = pose.x + ds * math.cos(mid), pose.y + ds * math.sin(mid)
-    else:
-        r = ds / dth
-        x = pose.x + r * (math.sin(pose.yaw + dth) - math.sin(pose.yaw))
-        y = pose.y - r * (math.cos(pose.yaw + dth) - math.cos(pose.yaw))
-    return Pose2D(x, y, normalize_angle(pose.yaw + dth))
-
-
-def compose(a, b):
-    """The pose ``b`` (given in ``a``'s frame) in ``a``'s parent frame: a ∘ b."""
-    c, s = math.cos(a.yaw), math.sin(a.yaw)
-    return Pose2D(a.x + c * b.x - s * b.y, a.y + s * b.x + c * b.y, normalize_angle(a.yaw + b.yaw))
-
-
-def inverse(a):
-    """The inverse transform of pose ``a``: a ∘ inverse(a) is the identity."""
-    c, s = math.cos(a.yaw), math.sin(a.yaw)
-    return Pose2D(-c * a.x - s * a.y, s * a.x - c * a.y, normalize_angle(-a.yaw))
-
-
-def interpolate(a, b, t):
-    """The pose a fraction ``t`` (0..1) of the way from ``a`` to ``b``."""
-    dyaw = normalize_angle(b.yaw - a.yaw)
-    return Pose2D(a.x + (b.x - a.x) * t, a.y + (b.y - a.y) * t, normalize_angle(a.yaw + dyaw * t))

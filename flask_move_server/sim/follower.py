@@ -11,7 +11,7 @@ Pure: no rospy; fed with poses, it returns velocities.
 import math
 from dataclasses import dataclass
 
-from flask_move_server.geometry import normalize_angle
+from flask_move_server.geometry import clamp, normalize_angle
 
 FOLLOW, TURN_TO_GOAL, DONE = "follow", "turn_to_goal", "done"
 
@@ -49,7 +49,7 @@ class PathFollower:
     def command(self, pose):
         """The velocity to apply at ``pose`` (a Pose2D); (0, 0) once the goal pose is reached."""
         lim = self.limits
-        dist = math.hypot(self.goal[0] - pose.x, self.goal[1] - pose.y)
+        dist = self._distance(pose, self.goal)
         if self.state == FOLLOW and dist < lim.xy_goal_tolerance * 0.5:
             self.state = TURN_TO_GOAL
         elif self.state != FOLLOW and dist > lim.xy_goal_tolerance * 0.9:
@@ -66,7 +66,7 @@ class PathFollower:
     def reached(self, pose):
         """True when ``pose`` is within the goal tolerances."""
         lim = self.limits
-        dist = math.hypot(self.goal[0] - pose.x, self.goal[1] - pose.y)
+        dist = self._distance(pose, self.goal)
         yaw_error = abs(normalize_angle(self.goal_yaw - pose.yaw))
         return dist <= lim.xy_goal_tolerance and yaw_error <= lim.yaw_goal_tolerance
 
@@ -79,7 +79,7 @@ class PathFollower:
         if abs(error) > lim.turn_in_place:
             return 0.0, self._turn(error)
         speed = min(lim.max_linear, lim.gain_linear * dist_to_goal) * max(0.0, math.cos(error))
-        return max(lim.min_linear, speed), _clamp(lim.gain_angular * error, lim.max_angular)
+        return max(lim.min_linear, speed), clamp(lim.gain_angular * error, lim.max_angular)
 
     def _turn(self, error):
         lim = self.limits
@@ -89,7 +89,3 @@ class PathFollower:
     @staticmethod
     def _distance(pose, point):
         return math.hypot(point[0] - pose.x, point[1] - pose.y)
-
-
-def _clamp(value, limit):
-    return max(-limit, min(limit, value))

@@ -21,7 +21,8 @@ from geometry_msgs.msg import PoseStamped, Twist
 from move_base_msgs.msg import MoveBaseAction, MoveBaseActionGoal, MoveBaseFeedback, MoveBaseResult
 
 from flask_move_server.errors import PlanningFailed
-from flask_move_server.geometry import quaternion_to_yaw
+from flask_move_server.geometry import normalize_angle
+from flask_move_server.ros.convert import pose_from_msg, pose_stamped, twist
 from flask_move_server.sim.follower import DONE, PathFollower
 
 log = logging.getLogger(__name__)
@@ -96,7 +97,7 @@ class MoveBaseStandIn:
             raise PlanningFailed("invalid", "the goal's position or orientation quaternion is invalid")
         here = self.pose()
         path = self.planner.plan((here.x, here.y), (p.x, p.y))
-        return PathFollower(path, quaternion_to_yaw(o.x, o.y, o.z, o.w), self.limits)
+        return PathFollower(path, pose_from_msg(target.pose).yaw, self.limits)
 
     def _follow(self, follower, target):
         """Drive along the path until reached, preempted or stuck: (outcome, text)."""
@@ -123,17 +124,11 @@ class MoveBaseStandIn:
         return "aborted", "shutting down"
 
     def _publish_velocity(self, linear, angular):
-        msg = Twist()
-        msg.linear.x, msg.angular.z = linear, angular
-        self._cmd_vel.publish(msg)
+        self._cmd_vel.publish(twist(linear, angular))
 
     def _feedback(self, target, pose):
         feedback = MoveBaseFeedback()
-        base = feedback.base_position
-        base.header.stamp = rospy.Time.now()
-        base.header.frame_id = self.frames.map
-        base.pose.position.x, base.pose.position.y = pose.x, pose.y
-        base.pose.orientation.z, base.pose.orientation.w = math.sin(pose.yaw / 2.0), math.cos(pose.yaw / 2.0)
+        feedback.base_position = pose_stamped(pose, self.frames.map, rospy.Time.now())
         self._server.publish_feedback(feedback)
 
     def close(self):
@@ -161,8 +156,7 @@ class _ProgressWatch:
 
     def stalled(self, pose, now):
         if self._anchor is None or (
-            math.hypot(pose.x - self._anchor.x, pose.y - self._anchor.y) > 0.01
-            or abs(math.atan2(math.sin(pose.yaw - self._anchor.yaw), math.cos(pose.yaw - self._anchor.yaw))) > 0.05
+            pose.distance_to(self._anchor) > 0.01 or abs(normalize_angle(pose.yaw - self._anchor.yaw)) > 0.05
         ):
             self._anchor, self._since = pose, now
             return False

@@ -17,12 +17,12 @@ import time
 
 import rospy
 import tf2_ros
-from geometry_msgs.msg import PoseWithCovarianceStamped, TransformStamped
+from geometry_msgs.msg import PoseWithCovarianceStamped
 from nav_msgs.msg import OccupancyGrid, Odometry
 from sensor_msgs.msg import LaserScan
 
-from flask_move_server.geometry import Pose2D, quaternion_to_yaw, yaw_to_quaternion
-from flask_move_server.sim.body import compose, interpolate, inverse
+from flask_move_server.geometry import compose, interpolate, inverse
+from flask_move_server.ros.convert import pose_from_msg, transform_message, write_pose
 
 log = logging.getLogger(__name__)
 
@@ -103,8 +103,7 @@ class SimWorld:
     def _on_odom(self, msg):
         if self._stop.is_set():
             return
-        p, o = msg.pose.pose.position, msg.pose.pose.orientation
-        odom = Pose2D(p.x, p.y, quaternion_to_yaw(o.x, o.y, o.z, o.w))
+        odom = pose_from_msg(msg.pose.pose)
         true = self.pose_at(msg.header.stamp.to_sec())
         map_to_odom = compose(true, inverse(odom))
         self._pubs["tf"].sendTransform(
@@ -170,23 +169,10 @@ def scan_message(laser, ranges, frame, rate):
     return msg
 
 
-def transform_message(pose, stamp, parent, child):
-    """A tf parent → child for a planar pose."""
-    t = TransformStamped()
-    t.header.stamp = stamp
-    t.header.frame_id, t.child_frame_id = parent, child
-    t.transform.translation.x, t.transform.translation.y = pose.x, pose.y
-    r = t.transform.rotation
-    r.x, r.y, r.z, r.w = yaw_to_quaternion(pose.yaw)
-    return t
-
-
 def amcl_pose_message(pose, stamp, frame):
     """/amcl_pose: the localized pose with AMCL's typical small covariance."""
     msg = PoseWithCovarianceStamped()
     msg.header.stamp, msg.header.frame_id = stamp, frame
-    msg.pose.pose.position.x, msg.pose.pose.position.y = pose.x, pose.y
-    o = msg.pose.pose.orientation
-    o.x, o.y, o.z, o.w = yaw_to_quaternion(pose.yaw)
+    write_pose(msg.pose.pose, pose)
     msg.pose.covariance = AMCL_COVARIANCE
     return msg
