@@ -141,10 +141,8 @@ class RobotClient:
         if self._resolved or not host.endswith(".local"):
             return False
         self._resolved = True
-        try:
-            from flask_move_server import discovery
-        except ImportError:
-            return False
+        from flask_move_server import discovery
+
         address = discovery.resolve_local(host, timeout=min(3.0, self.timeout))
         if not address:
             return False

@@ -20,11 +20,22 @@ import time
 
 from flask_move_server import __version__
 from flask_move_server import config as config_mod
+from flask_move_server.drive.backends import names as motor_backend_names
 from flask_move_server.errors import ConfigError, DriveError, WaypointFileError
+from flask_move_server.launching import (
+    EXIT_CONFIG,
+    EXIT_FAILURE,
+    EXIT_MASTER_REPLACED,
+    EXIT_OK,
+    LOG_LEVELS,
+    apply_private_params,
+    refuse,
+    ros_node_name,
+    setup_logging,
+    split_ros_args,
+)
 
 log = logging.getLogger("flask_move_server")
-
-EXIT_OK, EXIT_FAILURE, EXIT_CONFIG, EXIT_MASTER_REPLACED = 0, 1, 2, 3
 
 
 def parse_args(argv):
@@ -36,21 +47,14 @@ def parse_args(argv):
     parser.add_argument("--waypoints", metavar="FILE", help="waypoints file (default: waypoints.file in the config)")
     parser.add_argument("--host", help="address to listen on (default 0.0.0.0; 127.0.0.1 with --sim)")
     parser.add_argument("--port", type=int, help="TCP port (default 5000); 0 picks a free one and logs it")
-    parser.add_argument("--motor-backend", choices=["l298n", "serial", "sim", "none"], help="motor driver")
+    parser.add_argument("--motor-backend", choices=motor_backend_names(), help="motor driver")
     parser.add_argument("--no-mdns", action="store_true", help="do not advertise robot.local over mDNS")
     parser.add_argument("--insecure", action="store_true", help="allow serving the network without a token")
     parser.add_argument("--sim", action="store_true", help="run a simulated robot and world (no hardware)")
     parser.add_argument("--map", metavar="MAP.yaml", help="with --sim: the map_server map to simulate")
-    parser.add_argument("--log-level", default="INFO", choices=["DEBUG", "INFO", "WARNING", "ERROR"])
+    parser.add_argument("--log-level", default="INFO", choices=LOG_LEVELS)
     parser.add_argument("--version", action="version", version="%(prog)s " + __version__)
     return parser.parse_args(argv)
-
-
-def split_ros_args(argv):
-    """Separate ROS remapping arguments (``name:=value``, as roslaunch adds) from ours."""
-    ours = [a for a in argv if ":=" not in a]
-    ros = [a for a in argv if ":=" in a]
-    return ours, ros
 
 
 def load_config(args, ros_args):
@@ -62,32 +66,6 @@ def load_config(args, ros_args):
     _apply_flags(config, args)
     config_mod.check_serving_policy(config)
     return config
-
-
-def ros_node_name(ros_args):
-    remaps = dict(a.split(":=", 1) for a in ros_args)
-    name = remaps.get("__name")
-    if not name:
-        return None
-    namespace = remaps.get("__ns") or os.environ.get("ROS_NAMESPACE", "/")
-    return "/" + "/".join(p for p in (namespace.strip("/"), name) if p)
-
-
-def apply_private_params(config, node_name):
-    """Private params mirror the config file's sections (``~server/port``, ``~drive/backend``, ...)."""
-    from flask_move_server.ros import master
-
-    params = master.private_params(node_name)
-    if not params:
-        return config
-    source = "ROS params of {}".format(node_name)
-    config_file = params.pop("config", None)
-    if config_file:
-        config = config_mod.load(config_file)
-    merged = config_mod.merge(config_mod.as_plain(config), params)
-    result = config_mod.build(config_mod.Config, merged, source=source)
-    result.source = source
-    return result
 
 
 def _apply_flags(config, args):
@@ -113,27 +91,6 @@ def _apply_flags(config, args):
         config.mdns.enabled = False
     if args.insecure:
         config.server.insecure = True
-
-
-def setup_logging(level):
-    """Log to stderr: syslog priority prefixes under journald, timestamps on a terminal."""
-    handler = logging.StreamHandler(sys.stderr)
-    if os.environ.get("JOURNAL_STREAM"):
-        handler.setFormatter(_JournalFormatter())
-    else:
-        handler.setFormatter(logging.Formatter("%(asctime)s %(levelname)s %(name)s: %(message)s"))
-    # Not on the root logger: rospy.init_node replaces the root logger's handlers.
-    for name in ("flask_move_server", "waitress"):
-        logger = logging.getLogger(name)
-        logger.handlers[:] = [handler]
-        logger.setLevel(level)
-
-
-class _JournalFormatter(logging.Formatter):
-    _PRIORITY = {"DEBUG": 7, "INFO": 6, "WARNING": 4, "ERROR": 3, "CRITICAL": 2}
-
-    def format(self, record):
-        return "<{}>{}: {}".format(self._PRIORITY.get(record.levelname, 6), record.name, super().format(record))
 
 
 class Server:
@@ -302,8 +259,7 @@ def main(argv=None):
 
 
 def _refuse(reason, status):
-    print("flask-move-server: {}".format(reason), file=sys.stderr)
-    return status
+    return refuse("flask-move-server", reason, status)
 
 
 if __name__ == "__main__":

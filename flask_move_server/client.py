@@ -155,11 +155,8 @@ def _add_waypoint(client, args):
 
 def cmd_discover(client, args):
     """List the robots advertising themselves over mDNS on this network."""
-    try:
-        from flask_move_server import discovery
-    except ImportError:
-        raise ClientError("mDNS discovery is not available in this install (flask_move_server.discovery "
-                          "is missing); pass the robot's address with --url.", ExitStatus.ERROR)
+    from flask_move_server import discovery
+
     robots = discovery.discover(timeout=args.wait)
     if not robots:
         raise ClientError("no robot answered over mDNS within {:g} s: is this computer on the robot's network "

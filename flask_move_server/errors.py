@@ -1,7 +1,7 @@
 """One exception hierarchy for the whole package.
 
 Every error a user can cause or meet derives from :class:`MoveServerError` and
-carries a short machine-readable ``code``. ``web/errors.py`` maps each class to
+carries a short machine-readable ``code``. ``web/error_handlers.py`` maps each class to
 an HTTP status in one place; the CLI maps :class:`ConfigError` to exit status 2.
 """
 

@@ -117,14 +117,15 @@ class Robot:
             "teleop": self.teleop_control.status(),
             "motors": self.drive.status(),
             "estop": self.estop.status(),
-            "ros": {"state": self.node.state, "master_uri": self.node.master_uri, "node": self.node.name},
+            "ros": {"state": self.node.health, "master_uri": self.node.master_uri, "node": self.node.name,
+                    "failed_parts": self.node.failed_parts},
         }
 
     def health(self):
         """The short answer of ``GET /health``."""
         return {
             "status": "ok",
-            "ros": self.node.state,
+            "ros": self.node.health,
             "move_base": "ready" if self.navigator.server_ready() else "unavailable",
         }
 

@@ -1,4 +1,4 @@
-"""Living under systemd: sd_notify readiness and watchdog, and the motors' safe stop.
+"""Living under systemd: sd_notify readiness and watchdog.
 
 ``flask-move-server.service`` is ``Type=notify`` with ``WatchdogSec=``. :class:`Supervisor`
 tells systemd ``READY=1`` once the HTTP server answers ``/health`` (by then the motors are
@@ -11,12 +11,11 @@ The protocol is a datagram on the AF_UNIX socket named by ``$NOTIFY_SOCKET`` (sd
 spoken here with the standard library only. Without ``$NOTIFY_SOCKET`` (not under systemd)
 everything here does nothing.
 
-``python -m flask_move_server.systemd safe-stop --config FILE`` is the unit's
-``ExecStopPost=``: it drives every L298N enable and input pin low, so the bridges are off
-even when the server died without running its own clean-up.
+The motors' safe stop after the server exits (the units' ``ExecStopPost=``) is
+``python -m flask_move_server.drive.safe_stop``, beside the L298N backend it stops;
+``python -m flask_move_server.systemd safe-stop`` still runs it for units installed earlier.
 """
 
-import argparse
 import http.client
 import logging
 import os
@@ -142,60 +141,16 @@ class Supervisor:
         self.notifier.close()
 
 
-def enable_pins(config):
-    """Every L298N EN, IN1 and IN2 pin (BCM) the config names."""
-    from flask_move_server.drive.backends import l298n
-
-    pins = []
-    for _key, channel in l298n.check_pins(config.drive.l298n, config.source):
-        pins += [channel.en, channel.in1, channel.in2]
-    return pins
-
-
-def safe_stop(config_path=None, gpio=None):
-    """Drive the bridges' enable and input pins low; returns the pins set, [] when not l298n."""
-    from flask_move_server import config as config_mod
-    from flask_move_server.errors import ConfigError
-
-    try:
-        config = config_mod.load(config_path)
-    except ConfigError as exc:
-        log.warning("%s; using the default L298N pins", exc)
-        config = config_mod.Config()
-        config.drive.backend = "l298n"
-    if config.drive.backend != "l298n":
-        return []
-    pins = enable_pins(config)
-    if gpio is None:
-        from flask_move_server.drive.backends.l298n import import_gpio
-
-        gpio = import_gpio()
-    gpio.setwarnings(False)
-    gpio.setmode(gpio.BCM)
-    for pin in pins:
-        # Outputs held low, not cleanup(): an input would float and could enable a bridge.
-        gpio.setup(pin, gpio.OUT, initial=gpio.LOW)
-        gpio.output(pin, gpio.LOW)
-    return pins
-
-
 def main(argv=None):
-    """``python -m flask_move_server.systemd safe-stop [--config FILE]``."""
-    parser = argparse.ArgumentParser(prog="python -m flask_move_server.systemd")
-    sub = parser.add_subparsers(dest="command", required=True)
-    stop = sub.add_parser("safe-stop", help="drive the L298N enable and input pins low")
-    stop.add_argument("--config", metavar="FILE", help="server config naming the pins (default: built-in pins)")
-    args = parser.parse_args(argv)
-    logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
-    from flask_move_server.errors import MoveServerError
+    """``python -m flask_move_server.systemd safe-stop [--config FILE]``: units installed before
+    the command moved to ``flask_move_server.drive.safe_stop`` still run this one."""
+    argv = sys.argv[1:] if argv is None else list(argv)
+    if argv[:1] != ["safe-stop"]:
+        print("usage: python -m flask_move_server.systemd safe-stop [--config FILE]", file=sys.stderr)
+        return 2
+    from flask_move_server.drive import safe_stop
 
-    try:
-        pins = safe_stop(args.config)
-    except MoveServerError as exc:
-        print("safe-stop: {}".format(exc), file=sys.stderr)
-        return 1
-    print("safe-stop: " + ("GPIO {} low".format(", ".join(map(str, pins))) if pins else "no L298N pins to stop"))
-    return 0
+    return safe_stop.main(argv[1:], prog="python -m flask_move_server.systemd safe-stop")
 
 
 if __name__ == "__main__":

@@ -99,13 +99,6 @@ class WaypointStore:
             for k, v in items:
                 waypoints[k] = Waypoint(k, v.x, v.y, v.yaw)
 
-    def replace_all(self, new_waypoints):
-        """Replace every waypoint at once (undo in the recorder)."""
-        with self._edit() as waypoints:
-            waypoints.clear()
-            for wp in new_waypoints:
-                waypoints[wp.name] = wp
-
     @contextlib.contextmanager
     def _edit(self):
         # The file lock first, with a timeout, and outside the in-process lock:

@@ -6,7 +6,7 @@ import pytest
 
 from flask_move_server.config import DriveConfig, FramesConfig
 from flask_move_server.drive import make_drive
-from flask_move_server.drive.backends.arduino import ArduinoBackend
+from flask_move_server.drive.backends.serial import SerialBackend
 from tests.conftest import wait_for
 from tests.standins.firmware import FirmwareStandIn
 
@@ -30,7 +30,7 @@ def config(firmware):
 
 @pytest.fixture
 def arduino(config):
-    backend = ArduinoBackend(config)
+    backend = SerialBackend(config)
     yield backend
     backend.close()
 
@@ -80,7 +80,7 @@ def test_unplugged_means_stopped_and_it_reconnects_with_continuous_counts(arduin
 
 def test_a_missing_port_is_retried_not_fatal(tmp_path, config):
     config.serial.port = str(tmp_path / "nothing-here")
-    backend = ArduinoBackend(config)
+    backend = SerialBackend(config)
     try:
         assert not backend.connected and "cannot open" in backend.error
         assert backend.read_encoders() is None

@@ -3,7 +3,7 @@
 The server process (started like systemd starts it, with $NOTIFY_SOCKET and $WATCHDOG_USEC)
 must say READY=1 only when HTTP answers, ping WATCHDOG=1 while it serves, and STOPPING=1 on
 SIGTERM. In-process, an HTTP server whose requests hang gets no pings until it answers again.
-safe-stop drives the L298N pins low through the recording RPi.GPIO stand-in.
+The old ``systemd safe-stop`` command still runs the safe stop (tests/test_drive_safe_stop.py).
 """
 
 import re
@@ -16,7 +16,6 @@ import requests
 
 from flask_move_server import systemd
 from tests.conftest import run_cli, stop_process, wait_for
-from tests.standins.gpio import RecordingGPIO
 
 
 @pytest.fixture
@@ -155,37 +154,7 @@ def test_abstract_socket_names_and_watchdog_env():
     assert systemd.watchdog_interval({}) is None
 
 
-def test_safe_stop_drives_every_bridge_pin_low(tmp_path):
-    config = tmp_path / "robot.yaml"
-    config.write_text("drive:\n  backend: l298n\n  l298n:\n    left: [{in1: 5, in2: 6, en: 26}]\n"
-                      "    right: [{in1: 7, in2: 8, en: 9}]\n")
-    gpio = RecordingGPIO()
-    gpio.setmode(gpio.BCM)
-    gpio.setup(26, gpio.OUT, initial=gpio.HIGH)  # as a crashed server may leave it
-    pins = systemd.safe_stop(str(config), gpio)
-    assert sorted(pins) == [5, 6, 7, 8, 9, 26]
-    assert {pin: gpio.outputs[pin] for pin in pins} == {pin: gpio.LOW for pin in pins}
-    assert not gpio.cleaned  # held low as outputs, not released to float
-
-
-def test_safe_stop_does_nothing_for_other_backends(tmp_path):
-    config = tmp_path / "robot.yaml"
-    config.write_text("drive:\n  backend: sim\n")
-    gpio = RecordingGPIO()
-    assert systemd.safe_stop(str(config), gpio) == []
-    assert gpio.calls == []
-
-
-def test_safe_stop_falls_back_to_default_pins_on_a_broken_config(tmp_path):
-    config = tmp_path / "robot.yaml"
-    config.write_text("drive: {backend: l298n, typo: 1}\n")
-    gpio = RecordingGPIO()
-    pins = systemd.safe_stop(str(config), gpio)
-    assert set(pins) == {17, 27, 22, 23, 24, 25, 12, 13, 19, 16, 20, 21}
-    assert all(gpio.outputs[p] == gpio.LOW for p in pins)
-
-
-def test_safe_stop_command(tmp_path):
+def test_units_installed_before_the_move_still_stop_the_bridges(tmp_path):
     import subprocess
     import sys
 

@@ -2,7 +2,7 @@
 
 verify checks that every ExecStart/ExecStopPost binary exists, so the units are verified as
 installed by scripts/install into a temporary root, with /opt/flask-move-server rewritten to
-that root. The commands the units run (ros-exec, safe-stop) are run too.
+that root. The commands the units run (ros-exec, drive.safe_stop) are run too.
 """
 
 import glob
@@ -81,7 +81,7 @@ def test_server_unit_is_watched_restarted_and_safe():
     env_files = " ".join(unit["EnvironmentFile"])
     assert "/etc/flask-move-server/ros.env" in env_files and "/etc/flask-move-server/token.env" in env_files
     assert "PrivateDevices" not in unit and "DevicePolicy" not in unit  # /dev/gpiomem, gpiochip, ttyUSB
-    assert "flask_move_server.systemd safe-stop" in unit["ExecStopPost"][0]
+    assert "flask_move_server.drive.safe_stop --config" in unit["ExecStopPost"][0]
 
 
 def test_navigation_unit_leaves_the_server_to_its_own_unit():
@@ -117,7 +117,7 @@ def test_ros_exec_says_when_ros_is_missing(root, tmp_path):
 
 def test_exec_stop_post_names_what_to_install_without_gpio(root):
     python = os.path.join(str(root), "opt/flask-move-server/bin/python")
-    proc = subprocess.run([python, "-m", "flask_move_server.systemd", "safe-stop", "--config",
+    proc = subprocess.run([python, "-m", "flask_move_server.drive.safe_stop", "--config",
                            os.path.join(str(root), "etc/flask-move-server/robot.yaml")],
                           capture_output=True, text=True, timeout=60)
     assert proc.returncode == 1 and "RPi.GPIO" in proc.stderr

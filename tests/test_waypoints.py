@@ -130,7 +130,8 @@ def test_any_valid_waypoints_survive_a_save_and_load(tmp_path_factory, entries):
     path = tmp_path_factory.mktemp("rt") / "w.yaml"
     store = WaypointStore(path)
     wps = [make_waypoint(*e) for e in entries]
-    store.replace_all(wps)
+    for wp in wps:
+        store.put(wp)
     loaded = WaypointStore(path).all()
     assert loaded == wps
 

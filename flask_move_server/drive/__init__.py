@@ -2,7 +2,7 @@
 
 ``make_drive`` builds what ``drive.backend`` names: :class:`NoDrive` for
 ``none`` (another node drives the base and publishes odometry, so this process
-must not), otherwise a :class:`~flask_move_server.drive.base.BaseController`
+must not), otherwise a :class:`~flask_move_server.drive.controller.BaseController`
 over the named motor backend (``l298n``, ``serial``, ``sim``). Importing this
 package imports neither rospy nor RPi.GPIO.
 """
@@ -45,7 +45,7 @@ def make_drive(config, node, frames, source="(config)", backend=None, estop=None
         return NoDrive()
     check_config(config, source)
     from flask_move_server.drive.backends import create
-    from flask_move_server.drive.base import BaseController
+    from flask_move_server.drive.controller import BaseController
 
     motors = backend if backend is not None else create(config.backend, config, source)
     try:

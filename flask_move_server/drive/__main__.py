@@ -14,8 +14,9 @@ import signal
 import sys
 import threading
 
-from flask_move_server import cli
 from flask_move_server import config as config_mod
+from flask_move_server import launching
+from flask_move_server.drive.backends import NONE, motor_names
 from flask_move_server.errors import ConfigError, DriveError
 
 log = logging.getLogger("flask_move_server")
@@ -27,23 +28,23 @@ def parse_args(argv):
         description="Run only the base controller: /cmd_vel to the motors, /odom and tf odom → base_link.",
     )
     parser.add_argument("--config", metavar="FILE", help="server config (YAML); its drive: and ros: sections apply")
-    parser.add_argument("--motor-backend", choices=["l298n", "serial", "sim"], help="motor driver")
+    parser.add_argument("--motor-backend", choices=motor_names(), help="motor driver")
     parser.add_argument("--node-name", default="base_controller", help="ROS node name (default base_controller)")
-    parser.add_argument("--log-level", default="INFO", choices=["DEBUG", "INFO", "WARNING", "ERROR"])
+    parser.add_argument("--log-level", default="INFO", choices=launching.LOG_LEVELS)
     return parser.parse_args(argv)
 
 
 def load_config(args, ros_args):
     """The config file, then private params under roslaunch, then --motor-backend."""
     config = config_mod.load(args.config)
-    node_name = cli.ros_node_name(ros_args)
+    node_name = launching.ros_node_name(ros_args)
     if node_name:
-        config = cli.apply_private_params(config, node_name)
+        config = launching.apply_private_params(config, node_name)
     if args.motor_backend:
         config.drive.backend = args.motor_backend
-    if config.drive.backend == "none":
+    if config.drive.backend == NONE:
         raise ConfigError(config.source, "drive.backend",
-                          "is none: nothing to drive; choose l298n, serial or sim (--motor-backend)")
+                          "is none: nothing to drive; choose {} (--motor-backend)".format(" or ".join(motor_names())))
     return config
 
 
@@ -52,11 +53,11 @@ def run(config, node_name, stopping):
     from flask_move_server.drive import make_drive
     from flask_move_server.ros.node import RosNode
 
-    status = {"code": cli.EXIT_OK}
+    status = {"code": launching.EXIT_OK}
 
     def fatal(reason):
         log.error("stopping: %s", reason)
-        status["code"] = cli.EXIT_MASTER_REPLACED
+        status["code"] = launching.EXIT_MASTER_REPLACED
         stopping.set()
 
     with contextlib.ExitStack() as stack:
@@ -72,9 +73,9 @@ def run(config, node_name, stopping):
 
 def main(argv=None):
     argv = sys.argv[1:] if argv is None else argv
-    ours, ros_args = cli.split_ros_args(argv)
+    ours, ros_args = launching.split_ros_args(argv)
     args = parse_args(ours)
-    cli.setup_logging(args.log_level)
+    launching.setup_logging(args.log_level)
     stopping = threading.Event()
     for sig in (signal.SIGTERM, signal.SIGINT):
         signal.signal(sig, lambda signum, frame: stopping.set())
@@ -82,11 +83,9 @@ def main(argv=None):
         config = load_config(args, ros_args)
         return run(config, args.node_name, stopping)
     except ConfigError as exc:
-        print("flask-move-base: {}".format(exc), file=sys.stderr)
-        return cli.EXIT_CONFIG
+        return launching.refuse("flask-move-base", exc, launching.EXIT_CONFIG)
     except DriveError as exc:
-        print("flask-move-base: cannot drive the motors: {}".format(exc), file=sys.stderr)
-        return cli.EXIT_FAILURE
+        return launching.refuse("flask-move-base", "cannot drive the motors: {}".format(exc), launching.EXIT_FAILURE)
 
 
 if __name__ == "__main__":

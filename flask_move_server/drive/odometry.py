@@ -94,11 +94,6 @@ def _diagonal(values):
     return matrix
 
 
-def heading_error(a, b):
-    """Smallest signed difference between two headings, in rad."""
-    return normalize_angle(a - b)
-
-
 def ticks_per_metre(ticks_per_rev, wheel_radius):
     """Encoder ticks per metre of ground travelled."""
     return ticks_per_rev / (2.0 * math.pi * wheel_radius)

@@ -49,7 +49,7 @@ def main(argv=None):
 
 
 def _main(argv):
-    from flask_move_server.cli import split_ros_args
+    from flask_move_server.launching import split_ros_args
     from flask_move_server.ros import master
 
     argv = sys.argv[1:] if argv is None else list(argv)

@@ -61,10 +61,10 @@ def identity(caller_id, uri=None, timeout=2.0):
 
 
 def private_params(node_name, uri=None, timeout=2.0):
-    """The private parameters of ``node_name`` (``/ns/name/...``) as a dict, {} if none or unreachable."""
+    """The private parameters of ``node_name`` (``/ns/name/...``) as a dict: {} if none, None if unreachable."""
     master = proxy(uri, timeout)
     try:
         code, _, value = master.getParam(node_name, node_name.rstrip("/") + "/")
     except (OSError, xmlrpc.client.Error):
-        return {}
+        return None
     return value if code == 1 and isinstance(value, dict) else {}

@@ -4,6 +4,9 @@
 HTTP serves from the first second and ``/health`` says ``"ros": "waiting"``
 until the node is registered. Parts that need the node (navigator, pose
 tracker, teleop, base controller) register a callback with :meth:`when_ready`.
+A part whose set-up callback raises is named in :attr:`failed_parts` and the
+node's :attr:`health` is ``degraded``, not ``connected``: the rest of the robot
+still works, but /health and /status must not promise what that part does.
 
 The master is then watched. When it stops answering, the node is ``lost``
 (``/health`` says so; ``on_lost`` callbacks stop the motors). When a *new*
@@ -21,6 +24,7 @@ from flask_move_server.ros import master
 log = logging.getLogger(__name__)
 
 WAITING, CONNECTED, LOST, NEW_MASTER, CLOSED = "waiting", "connected", "lost", "new_master", "closed"
+DEGRADED = "degraded"  # connected, but a part's set-up failed (see RosNode.failed_parts)
 
 
 class RosNode:
@@ -35,6 +39,7 @@ class RosNode:
         self._identity = None
         self._owns_rospy = False
         self._ready_callbacks = []
+        self._failed_parts = []
         self._lost_callbacks = []
         self._lock = threading.Lock()
         self._stop = threading.Event()
@@ -49,16 +54,34 @@ class RosNode:
     def connected(self):
         return self.state == CONNECTED
 
-    def when_ready(self, callback):
-        """Run ``callback()`` once the node is registered (at once if it is and set up)."""
+    @property
+    def failed_parts(self):
+        """``[{"part": name, "error": message}]`` for every part whose set-up raised."""
+        with self._lock:
+            return [dict(part) for part in self._failed_parts]
+
+    @property
+    def health(self):
+        """The node's state as /health tells it: ``degraded`` when connected with a part not set up."""
+        state = self.state
+        if state == CONNECTED and self._failed_parts:
+            return DEGRADED
+        return state
+
+    def when_ready(self, callback, part=None):
+        """Run ``callback()`` once the node is registered (at once if it is and set up).
+
+        ``part``: the name /status gives the part if its set-up fails (default: the class of
+        a bound method's object, ``Teleop``, ``Navigator``...).
+        """
         with self._lock:
             if self.state not in (WAITING, CLOSED):
                 run_now = True
             else:
-                self._ready_callbacks.append(callback)
+                self._ready_callbacks.append((callback, part))
                 run_now = False
         if run_now:
-            _call(callback)
+            self._set_up(callback, part)
 
     def when_lost(self, callback):
         """Run ``callback()`` each time the master stops answering."""
@@ -118,8 +141,18 @@ class RosNode:
                     if self.state == WAITING:
                         self.state = CONNECTED
                     return
-            for callback in callbacks:
-                _call(callback)
+            for callback, part in callbacks:
+                self._set_up(callback, part)
+
+    def _set_up(self, callback, part):
+        """Run one part's set-up; a failure is logged and recorded, never fatal to the node."""
+        try:
+            callback()
+        except Exception as exc:
+            name = part or _part_name(callback)
+            log.exception("the ROS set-up of %s failed; /health says %r until the server restarts", name, DEGRADED)
+            with self._lock:
+                self._failed_parts.append({"part": name, "error": "{}: {}".format(type(exc).__name__, exc)})
 
     def _init_rospy(self):
         import rospy
@@ -171,4 +204,12 @@ def _call(callback):
     try:
         callback()
     except Exception:
-        log.exception("ROS start-up callback %r failed", callback)
+        log.exception("ROS callback %r failed", callback)
+
+
+def _part_name(callback):
+    """What a set-up callback sets up: its object's class (``Teleop``), else its own name."""
+    owner = getattr(callback, "__self__", None)
+    if owner is not None:
+        return type(owner).__name__
+    return getattr(callback, "__qualname__", repr(callback))

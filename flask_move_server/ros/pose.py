@@ -1,6 +1,5 @@
 """Where the robot is: tf ``map → base_link``, falling back to ``/amcl_pose``."""
 
-import threading
 from dataclasses import dataclass
 
 import rospy
@@ -35,7 +34,6 @@ class PoseTracker:
         self._frames = frames
         self.max_age = max_age
         self._amcl_topic = amcl_pose_topic
-        self._lock = threading.Lock()
         self._amcl = None
         self._buffer = None
         self._subscriptions = []

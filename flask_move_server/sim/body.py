@@ -23,7 +23,6 @@ class RobotBody:
         self._pose = pose or Pose2D(0.0, 0.0, 0.0)
         self._lock = threading.Lock()
         self.bumped = False
-        self.distance = 0.0  # metres really travelled, for tests and benchmarks
 
     @property
     def pose(self):
@@ -44,13 +43,7 @@ class RobotBody:
                 if self.costmap.lethal_at(moved.x, moved.y):
                     bumped = True
                     moved = Pose2D(pose.x, pose.y, moved.yaw)
-                self.distance += math.hypot(moved.x - pose.x, moved.y - pose.y)
                 pose = moved
             self._pose, self.bumped = pose, bumped
             return pose
-
-    def place(self, pose):
-        """Put the robot at ``pose`` (a Pose2D), as if carried there."""
-        with self._lock:
-            self._pose = pose
 

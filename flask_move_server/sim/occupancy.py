@@ -57,10 +57,6 @@ class OccupancyMap:
         """A bytearray, 1 per cell the robot cannot enter: occupied (>= 50) or unknown."""
         return bytearray(1 if (v < 0 or v >= 50) else 0 for v in self.cells)
 
-    @property
-    def size_m(self):
-        return self.width * self.resolution, self.height * self.resolution
-
 
 def load(yaml_path):
     """Read a map_server map (YAML + PGM) into an :class:`OccupancyMap`."""

@@ -6,7 +6,7 @@ module global, so several apps (tests) can live in one process.
 
 from flask import Blueprint, Flask, Response, send_from_directory
 
-from flask_move_server.web import auth, errors, guard
+from flask_move_server.web import auth, error_handlers, guard
 from flask_move_server.web.estop import estop
 from flask_move_server.web.routes import WaypointNameConverter, api
 
@@ -29,7 +29,7 @@ def create_app(config, robot, store, token=None):
     app.config["MAX_CONTENT_LENGTH"] = config.server.max_body_bytes
     app.json.sort_keys = False
     app.extensions["flask_move_server"] = {"config": config, "robot": robot, "store": store}
-    errors.init_app(app)
+    error_handlers.init_app(app)
     guard.init_app(app, config)  # before auth: it protects robots without a token too
     auth.init_app(app, token)
     app.register_blueprint(api)

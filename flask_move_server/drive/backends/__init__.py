@@ -11,11 +11,12 @@ import importlib
 
 from flask_move_server.errors import DriveError
 
+# ``drive.backend: none``: another node drives the base, so no backend is built (drive.NoDrive).
+NONE = "none"
 # name -> module that registers it (imported only when that backend is chosen)
 _MODULES = {
-    "none": "flask_move_server.drive.backends.idle",
     "l298n": "flask_move_server.drive.backends.l298n",
-    "serial": "flask_move_server.drive.backends.arduino",
+    "serial": "flask_move_server.drive.backends.serial",
     "sim": "flask_move_server.drive.backends.sim",
 }
 _REGISTRY = {}
@@ -67,16 +68,21 @@ def register(name):
     return decorate
 
 
-def names():
-    """Every backend name, for help texts and errors."""
+def motor_names():
+    """The backends that drive motors from this process (``--motor-backend`` of flask-move-base)."""
     return sorted(_MODULES)
+
+
+def names():
+    """Every name ``drive.backend`` accepts: the motor backends, then ``none``."""
+    return motor_names() + [NONE]
 
 
 def backend_class(name):
     """The class registered as ``name``; DriveError quoting an unknown name."""
     if name not in _MODULES:
         raise DriveError(
-            "unknown motor backend {!r}; choose one of: {}".format(name, ", ".join(names()))
+            "unknown motor backend {!r}; choose one of: {}".format(name, ", ".join(motor_names()))
         )
     importlib.import_module(_MODULES[name])
     return _REGISTRY[name]

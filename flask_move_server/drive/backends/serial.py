@@ -27,12 +27,8 @@ from flask_move_server.drive.odometry import ticks_per_metre
 log = logging.getLogger(__name__)
 
 
-class _Unplugged(Exception):
-    """The port failed mid-conversation."""
-
-
 @register("serial")
-class ArduinoBackend(MotorBackend):
+class SerialBackend(MotorBackend):
     """Closed-loop motors behind a microcontroller on a serial port."""
 
     closed_loop = True
