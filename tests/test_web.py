@@ -197,9 +197,10 @@ def test_every_route_needs_the_token(token_client, robot_config, method, path, b
     assert r.status_code != 401
 
 
-def test_health_and_the_page_need_no_token(token_client):
+def test_health_the_page_and_the_api_description_need_no_token(token_client):
     assert token_client.get("/health").status_code == 200
     assert token_client.get("/").status_code == 200
+    assert token_client.get("/openapi.json").get_json()["openapi"].startswith("3.")
 
 
 def test_a_configured_token_with_a_trailing_newline_is_the_token_over_http(robot_config, robot, store):
