@@ -1,11 +1,14 @@
 """``GET /openapi.json`` tells the truth: every route of the app is in it, nothing else is."""
 
+import os
 import re
 
 import pytest
 
+from flask_move_server import errors
 from flask_move_server.waypoints import NAME_RULE
 from flask_move_server.web import create_app
+from tests.conftest import ROOT
 from tests.fake_robot import FakeRobot
 
 AUTOMATIC = {"HEAD", "OPTIONS"}  # werkzeug answers these on every route by itself
@@ -57,3 +60,22 @@ def test_a_route_missing_from_the_description_is_found(robot_config, store):
     app.add_url_rule("/undocumented/<int:n>", "undocumented", lambda n: "", methods=["PATCH"])
     document = app.test_client().get("/openapi.json").get_json()
     assert _routes(app) - _described(document) == {("/undocumented/{n}", "patch")}
+
+
+# Errors that never reach HTTP: bad config (exit status 2), robotctl's own, the simulator's planner.
+NOT_ON_THE_WIRE = {"bad_config", "client_error", "planning_failed", "error"}
+
+
+def _all_codes(cls=errors.MoveServerError):
+    return {cls.code}.union(*(_all_codes(sub) for sub in cls.__subclasses__()))
+
+
+def test_docs_api_md_names_every_endpoint_and_every_error_code(robot_config, store):
+    with open(os.path.join(ROOT, "docs", "api.md"), encoding="utf-8") as f:
+        reference = f.read()
+    document = create_app(robot_config, FakeRobot(), store).test_client().get("/openapi.json").get_json()
+    for path, method in _described(document):
+        spelled = re.sub(r"{(\w+)}", r"<\1>", path).replace("<filename>", "<file>")
+        assert "{} {}".format(method.upper(), spelled) in reference or spelled + "`" in reference, (method, path)
+    missing = {code for code in _all_codes() - NOT_ON_THE_WIRE if "| `{}` |".format(code) not in reference}
+    assert not missing, "error codes without a row in docs/api.md's table: {}".format(sorted(missing))
