@@ -3,6 +3,7 @@
 import contextlib
 import os
 import shutil
+import signal
 import socket
 import subprocess
 import sys
@@ -25,18 +26,35 @@ def pytest_report_header(config):
 
     lines = ["python {} at {}".format(sys.version.split()[0], sys.executable)]
     for mod in (flask, waitress, yaml):
-        version = getattr(mod, "__version__", None) or _dist_version(mod.__name__)
-        lines.append("{} {} from {}".format(mod.__name__, version, os.path.dirname(mod.__file__)))
+        lines.append("{} {} from {}".format(mod.__name__, _dist_version(mod.__name__), os.path.dirname(mod.__file__)))
     return lines
 
 
 def _dist_version(name):
+    """The installed version of a module's distribution (Flask 3 deprecates ``flask.__version__``)."""
     try:
         from importlib.metadata import version
 
         return version({"yaml": "PyYAML", "flask": "Flask"}.get(name, name))
     except Exception:
         return "?"
+
+
+def default_sigint():
+    """A child's ``preexec_fn``: SIGINT at its default, whatever this pytest process inherited.
+
+    A shell starts background jobs (``nohup make test &``) with SIGINT ignored, some CIs start their
+    steps so, and children inherit it: a Python child would then never see the Ctrl-C a test sends.
+    """
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
+@pytest.fixture
+def sigint_at_default():
+    """Python's own Ctrl-C handler for this test (KeyboardInterrupt), even when pytest started ignoring SIGINT."""
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    yield
+    signal.signal(signal.SIGINT, previous)
 
 
 def free_port():
@@ -204,7 +222,8 @@ def run_cli(*args, env=None, **kw):
     full_env.setdefault("PYTHONUNBUFFERED", "1")
     return subprocess.Popen(
         [sys.executable, "-m", "flask_move_server", *args],
-        stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=full_env, cwd=kw.pop("cwd", ROOT), text=True, **kw
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=full_env, cwd=kw.pop("cwd", ROOT), text=True,
+        preexec_fn=default_sigint, **kw
     )
 
 

@@ -22,21 +22,49 @@ VETH = {SERVER: "lan-s", CLIENT: "lan-c"}
 
 
 def _ip(*args, check=True):
-    return subprocess.run(["ip", *args], capture_output=True, text=True, check=check, timeout=20)
+    """Run ``ip ARGS``; with ``check``, a failure raises saying the command and ip's stderr."""
+    result = subprocess.run(["ip", *args], capture_output=True, text=True, timeout=20)
+    if check and result.returncode != 0:
+        raise RuntimeError("`ip {}` failed: {}".format(" ".join(args), _said(result)))
+    return result
 
 
 def unavailable_reason():
-    """None when ``ip netns add`` works here; otherwise why the LAN tests cannot run."""
+    """None when namespaces work here; otherwise why the LAN tests cannot run, with ip's own words.
+
+    Creating one is not enough: some containers and chroots let ``ip netns add`` succeed and then
+    refuse ``ip -n`` (no sysfs to mount in the namespace) or ``ip netns exec``; each is tried once.
+    """
     probe = "fmsprobe{}".format(uuid.uuid4().hex[:8])
     try:
         result = _ip("netns", "add", probe, check=False)
     except (OSError, subprocess.SubprocessError) as exc:
         return "`ip netns` is not available ({}): real-multicast mDNS tests need iproute2 and root".format(exc)
     if result.returncode != 0:
-        return "`ip netns add` failed ({}): real-multicast mDNS tests need root (CI has it)".format(
-            result.stderr.strip() or "exit {}".format(result.returncode))
-    _ip("netns", "del", probe, check=False)
+        return "`ip netns add` failed ({}): real-multicast mDNS tests need root (CI has it)".format(_said(result))
+    try:
+        return _use_reason(probe)
+    finally:
+        _ip("netns", "del", probe, check=False)
+
+
+def _use_reason(namespace):
+    """Why the namespace just made cannot be configured or run in (``ip -n``, ``ip netns exec``), or None."""
+    for what, argv in (("ip -n", ["-n", namespace, "link", "set", "lo", "up"]),
+                       ("ip netns exec", ["netns", "exec", namespace, "true"])):
+        try:
+            result = _ip(*argv, check=False)
+        except (OSError, subprocess.SubprocessError) as exc:
+            return "`{}` failed ({}): real-multicast mDNS tests need working network namespaces".format(what, exc)
+        if result.returncode != 0:
+            return "`{}` failed ({}): real-multicast mDNS tests need working network namespaces".format(
+                what, _said(result))
     return None
+
+
+def _said(result):
+    """What a failed ``ip`` said: its stderr, else its exit status."""
+    return result.stderr.strip() or "exit {}".format(result.returncode)
 
 
 def sweep_stale():

@@ -18,7 +18,7 @@ from geometry_msgs.msg import PoseWithCovarianceStamped
 from flask_move_server import client
 from flask_move_server.api_client import ExitStatus
 from flask_move_server.goal_endings import failure_sentence
-from tests.conftest import ROOT, serve, stop_process, wait_for
+from tests.conftest import ROOT, default_sigint, serve, stop_process, wait_for
 from tests.standins.move_base import ABORT_X, HOLD_X, ScriptedMoveBase
 
 
@@ -374,7 +374,8 @@ def test_drive_needs_a_terminal(live, capsys):
 
 def test_ctrl_c_while_waiting_stops_the_robot(live):
     proc = subprocess.Popen([sys.executable, "-m", "flask_move_server.client", "--url", live.url,
-                             "goto", "forever", "--wait"], cwd=ROOT, stderr=subprocess.PIPE, text=True)
+                             "goto", "forever", "--wait"], cwd=ROOT, stderr=subprocess.PIPE, text=True,
+                            preexec_fn=default_sigint)
     try:
         assert proc.stderr.readline().startswith("forever: active")
         proc.send_signal(signal.SIGINT)

@@ -2,6 +2,8 @@
 
 The robot answers only to its own names (Host) and only to its own page or to clients that send
 no Origin (curl, robotctl, requests), before any token check, so token-less robots are covered.
+The guard is the web layer's, so the robot behind it is the fake (tests/fake_robot.py): a refused
+request must not reach it at all.
 """
 
 import http.client
@@ -14,9 +16,16 @@ from flask_move_server import config
 from flask_move_server.errors import ConfigError
 from flask_move_server.web import create_app
 from tests.conftest import serve
+from tests.fake_robot import FakeRobot
 from tests.robot_fixtures import SEED
 
 GOTO = '{"x": 1.0, "y": 2.0}'
+
+
+@pytest.fixture
+def robot():
+    """The fake robot in place of the real one: the app and store fixtures build on it."""
+    return FakeRobot()
 
 
 @pytest.fixture
@@ -59,7 +68,7 @@ def test_any_other_name_is_refused_saying_how_to_allow_it(guarded, robot_config,
     "http://evil.example", "https://evil.example", "null", "http://robot.local:8080", "http://robot.local",
     "http://robot.local:5000.evil.example", "file://", "http://127.0.0.1:5000", "http://[", "robot.local:5000",
 ])
-def test_a_text_plain_post_from_another_page_moves_nothing(guarded, robot_config, origin):
+def test_a_text_plain_post_from_another_page_moves_nothing(guarded, robot, robot_config, origin):
     client = guarded.test_client()
     for path, body in (("/goto", GOTO), ("/teleop", '{"linear": 0.2}'),
                        ("/waypoints/x", '{"x": 1, "y": 1, "yaw": 0}')):
@@ -70,6 +79,7 @@ def test_a_text_plain_post_from_another_page_moves_nothing(guarded, robot_config
         assert "cannot drive the robot" in r.get_json()["message"]
     status = client.get("/status", headers={"Host": "robot.local:5000"}).get_json()
     assert status["navigation"]["state"] == "idle" and status["teleop"]["active"] is False
+    assert robot.moved() == []
     assert open(robot_config.waypoints.file).read() == SEED
 
 
@@ -82,13 +92,14 @@ def test_another_pages_reads_are_refused_too(guarded):
     assert r.status_code == 403 and "Sec-Fetch-Site" in r.get_json()["message"]
 
 
-def test_the_robots_own_page_and_plain_clients_still_drive_it(guarded, ready_robot):
+def test_the_robots_own_page_and_plain_clients_still_drive_it(guarded, robot):
     client = guarded.test_client()
     for headers in ({"Host": "robot.local:5000", "Origin": "http://robot.local:5000", "Sec-Fetch-Site": "same-origin"},
                     {"Host": "192.168.1.20:5000", "Origin": "https://192.168.1.20:5000"},
                     {"Host": "127.0.0.1:5000"}):  # curl, robotctl: no Origin
         r = client.post("/goto", data=GOTO, content_type="text/plain", headers=headers)
         assert r.status_code == 202, (headers, r.get_json())
+    assert len(robot.moved()) == 3
 
 
 def test_following_a_link_to_the_page_from_another_site_works(guarded):
@@ -136,7 +147,7 @@ def _raw(url, method, path, headers, body=None):
         conn.close()
 
 
-def test_over_real_http_rebinding_and_cross_site_posts_are_refused(guarded, ready_robot, move_base):
+def test_over_real_http_rebinding_and_cross_site_posts_are_refused(guarded, robot):
     with serve(guarded) as url:
         port = url.rsplit(":", 1)[1]
         plain = {"Content-Type": "text/plain", "Content-Length": str(len(GOTO))}
@@ -147,8 +158,9 @@ def test_over_real_http_rebinding_and_cross_site_posts_are_refused(guarded, read
         headers = dict(plain, Host="127.0.0.1:" + port, Origin="http://attacker.example")
         status, _, body = _raw(url, "POST", "/goto", headers, GOTO)
         assert status == 403 and json.loads(body)["error"] == "forbidden_origin"
-        assert not move_base.goals
+        assert robot.moved() == []
         # The robot's own page, and curl without an Origin, still drive it.
         headers = dict(plain, Host="robot.local:" + port, Origin="http://robot.local:" + port)
         assert _raw(url, "POST", "/goto", headers, GOTO)[0] == 202
         assert _raw(url, "POST", "/goto", dict(plain, Host="127.0.0.1:" + port), GOTO)[0] == 202
+        assert len(robot.moved()) == 2

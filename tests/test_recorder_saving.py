@@ -17,7 +17,7 @@ from flask_move_server.api_client import ExitStatus
 from flask_move_server.geometry import Pose2D
 from flask_move_server.recorder.savers import FileSaver, ServerSaver, choose_saver
 from flask_move_server.waypoints_format import parse
-from tests.conftest import ROOT, free_port, stop_process, wait_for
+from tests.conftest import ROOT, default_sigint, free_port, stop_process, wait_for
 from tests.test_client import robot_server
 from tests.test_recorder import Rig
 
@@ -100,7 +100,7 @@ def test_the_file_path_beside_a_writing_server_loses_no_update(ros_node, unique_
 def recorder_process(*args):
     proc = subprocess.Popen([sys.executable, "-m", "flask_move_server.recorder", *args],
                             stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                            cwd=ROOT, text=True, env=dict(os.environ, PYTHONUNBUFFERED="1"))
+                            cwd=ROOT, text=True, env=dict(os.environ, PYTHONUNBUFFERED="1"), preexec_fn=default_sigint)
     lines = queue.Queue()
     lines.transcript = []  # every line, for checks after the process ends
 
@@ -196,7 +196,7 @@ def test_no_ros_master_says_what_to_do(tmp_path):
     assert "start roscore" in proc.stderr and "Traceback" not in proc.stderr
 
 
-def test_a_ctrl_c_during_a_save_takes_effect_right_after_it(tmp_path):
+def test_a_ctrl_c_during_a_save_takes_effect_right_after_it(tmp_path, sigint_at_default):
     from flask_move_server.recorder.prompt import interrupts_deferred
     from flask_move_server.waypoints import make_waypoint
 

@@ -1,4 +1,4 @@
-"""Bearer-token auth: every request but ``GET /health`` and the page's files."""
+"""Bearer-token auth: every request but ``GET /health``, ``GET /openapi.json`` and the page's files."""
 
 import hmac
 
@@ -6,7 +6,7 @@ from flask import request
 
 from flask_move_server.errors import Unauthorized
 
-OPEN_ENDPOINTS = frozenset({"api.health", "static", "page.index"})
+OPEN_ENDPOINTS = frozenset({"api.health", "openapi.openapi", "static", "page.index"})
 
 
 def init_app(app, token):

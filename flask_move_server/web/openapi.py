@@ -1,0 +1,204 @@
+"""``GET /openapi.json``: the HTTP API as an OpenAPI 3 description, built from the code's own limits.
+
+docs/api.md is the API for people; this is the same for programs (code generators, API
+explorers, the fuzz test). It is built from the config the app serves with, so the numbers in it
+(body size, longest ``wait``, coordinate bounds, the name rule) are the ones this server applies,
+and tests/test_openapi.py keeps its paths and methods equal to the app's routes. It needs no token,
+like ``/health``: it describes the software, the same on every robot, and nothing of this one's
+waypoints or state.
+"""
+
+from flask import Blueprint, current_app, jsonify
+
+from flask_move_server import __version__
+from flask_move_server.waypoints import NAME_RULE, POSITION_LIMIT, YAW_LIMIT
+
+description = Blueprint("openapi", __name__)
+
+ERROR_CODES = {
+    400: "bad_request, bad_waypoint: a malformed body, field, name or coordinate",
+    401: "unauthorized: the token is missing or wrong (a token is configured)",
+    403: "unknown_host, forbidden_origin: a name the robot does not have, or another site's web page",
+    404: "unknown_waypoint (with suggestions), not_found: no such waypoint or endpoint",
+    405: "method_not_allowed: the path takes other methods (the Allow header lists them)",
+    409: "navigation_failed (with state), no_pose, estop_latched, estop_button_pressed, waypoints_file",
+    413: "body_too_large: the body is over server.max_body_bytes",
+    503: "ros_unavailable, move_base_unavailable, drive_error, shutting_down, waypoints_locked",
+}
+
+
+@description.route("/openapi.json", methods=["GET"])
+def openapi():
+    return jsonify(build(current_app.extensions["flask_move_server"]["config"]))
+
+
+def build(config):
+    """The OpenAPI 3.0 document for an app serving with ``config``."""
+    paths = {
+        "/goto": {"post": _goto(config.navigation.max_wait)},
+        "/stop": {"post": _operation("Cancel the goal, end teleop, command zero velocity", NO_FIELDS,
+                                     {200: _ok({"canceled_goal": {"type": "boolean"}})}, body_optional=True)},
+        "/teleop": {"post": _teleop()},
+        "/estop": {"post": _estop("Latch the e-stop: stop everything, refuse goals and teleop", "engaged",
+                                  body=False)},
+        "/estop/release": {"post": _estop("Release the e-stop (moves nothing)", "released", body=True)},
+        "/waypoints": {"get": _operation("List the waypoints", None, {200: _json(_object(
+            {"waypoints": {"type": "array", "items": _ref("Waypoint")}}))})},
+        "/waypoints/{name}": _waypoint_item(),
+        "/status": {"get": _operation("Pose, navigation, teleop, motors, e-stop, ROS, waypoints file", None,
+                                      {200: _json(_object({}, ["pose", "navigation", "teleop", "motors", "estop"]))})},
+        "/health": {"get": _open(_operation("Is the server up, ROS connected, move_base ready?", None, {
+            200: _json(_object({"status": {"enum": ["ok"]}, "ros": {"type": "string"},
+                                "move_base": {"enum": ["ready", "unavailable"]}}))}))},
+        "/openapi.json": {"get": _open(_operation("This description", None, {200: _json({"type": "object"})}))},
+    }
+    paths.update(_static_files())
+    if config.server.static:
+        paths.update(_page())
+    return {
+        "openapi": "3.0.3",
+        "info": {"title": "flask-move-server", "version": __version__,
+                 "description": "Send a ROS 1 robot to named waypoints over HTTP. Read docs/api.md."},
+        "paths": paths,
+        "components": _components(config.server.max_body_bytes),
+        "security": [{"bearer": []}, {}],
+    }
+
+
+def _goto(max_wait):
+    wait = {"type": "number", "minimum": 0, "maximum": max_wait,
+            "description": "seconds to wait for arrival before answering (at most navigation.max_wait)"}
+    by_name = _object({"name": _name("a waypoint's name"), "wait": wait}, ["name"])
+    by_pose = _object({"x": _coordinate(POSITION_LIMIT), "y": _coordinate(POSITION_LIMIT),
+                       "yaw": _coordinate(YAW_LIMIT), "wait": wait}, ["x", "y"])
+    answer = _object({"status": {"enum": ["ok"]}, "target": {"type": "string", "nullable": True},
+                      "goal": _ref("Pose"), "goal_id": {"type": "integer"},
+                      "navigation": {"type": "object", "description": "with wait: the goal's state"}})
+    return _operation("Send the robot to a waypoint or a pose", {"oneOf": [by_name, by_pose]},
+                      {200: _json(answer, "arrived (with wait)"), 202: _json(answer, "on its way")},
+                      errors=(404, 409, 503))
+
+
+def _teleop():
+    speed = {"type": "number", "description": "clamped to the configured limit"}
+    body = _object({"linear": dict(speed, description="m/s, clamped to teleop.max_linear"),
+                    "angular": dict(speed, description="rad/s, clamped to teleop.max_angular")})
+    answer = _ok({"linear": {"type": "number"}, "angular": {"type": "number"}, "hold": {"type": "number"},
+                  "canceled_goal": {"type": "boolean"}})
+    return _operation("Drive at a velocity for the deadman time", body, {200: answer}, errors=(409, 503))
+
+
+def _estop(summary, flag, body):
+    answer = _ok({flag: {"type": "boolean"}, "estop": _ref("EStop")})
+    if not body:  # no body check: a stop is never refused for what came with it
+        return _operation(summary, None, {200: answer})
+    return _operation(summary, NO_FIELDS, {200: answer}, errors=(409,), body_optional=True)
+
+
+def _waypoint_item():
+    name = {"name": "name", "in": "path", "required": True, "description": NAME_RULE, "schema": _name()}
+    by_pose = _object({"x": _coordinate(POSITION_LIMIT), "y": _coordinate(POSITION_LIMIT),
+                       "yaw": _coordinate(YAW_LIMIT)}, ["x", "y", "yaw"])
+    from_robot = _object({"from": {"enum": ["current"]}}, ["from"])
+    saved = _ok({"created": {"type": "boolean"}, "waypoint": _ref("Waypoint")})
+    item = {
+        "get": _operation("One waypoint", None, {200: _json(_ref("Waypoint"))}, errors=(400, 404)),
+        "put": _operation("Create or replace a waypoint (saved before the answer)", {"oneOf": [by_pose, from_robot]},
+                          {200: dict(saved, description="replaced"), 201: dict(saved, description="created")},
+                          errors=(409, 503)),
+        "delete": _operation("Delete a waypoint (saved before the answer)", None,
+                             {204: {"description": "deleted"}}, errors=(400, 404, 409, 503)),
+    }
+    for operation in item.values():
+        operation["parameters"] = [name]
+    return item
+
+
+def _page():
+    html = {200: {"description": "the phone page", "content": {"text/html": {"schema": {"type": "string"}}}}}
+    return {"/": {"get": _open(_operation("The phone page", None, html))}}
+
+
+def _static_files():
+    """Flask serves the package's static folder whether or not ``server.static`` adds the page at ``/``."""
+    filename = {"name": "filename", "in": "path", "required": True, "schema": {"type": "string"}}
+    static = _operation("The phone page's files", None, {200: {"description": "the file"}}, errors=(404,))
+    static["parameters"] = [filename]
+    return {"/static/{filename}": {"get": _open(static)}}
+
+
+def _operation(summary, body, answers, errors=(), body_optional=False):
+    """One operation: its summary, JSON body schema (None: reads none), answers, the errors it can give.
+
+    Every operation can answer 401 (a token is configured; :func:`_open` takes it away) and 403 (the
+    Host/Origin guard); one that reads a body, 400 and 413. 405 belongs to the path, not an operation.
+    """
+    responses = {str(status): answer for status, answer in answers.items()}
+    for status in sorted({401, 403, *errors} | ({400, 413} if body else set())):
+        responses[str(status)] = {"$ref": "#/components/responses/E{}".format(status)}
+    operation = {"summary": summary, "responses": responses}
+    if body is not None:
+        operation["requestBody"] = {"required": not body_optional,
+                                    "content": {"application/json": {"schema": body}}}
+    return operation
+
+
+def _open(operation):
+    """Served without a token, even when the robot has one."""
+    operation["security"] = []
+    operation["responses"].pop("401", None)
+    return operation
+
+
+def _components(max_body_bytes):
+    error = _object({"status": {"enum": ["error"]}, "error": {"type": "string"}, "message": {"type": "string"},
+                     "suggestions": {"type": "array", "items": {"type": "string"}},
+                     "state": {"type": "string"}}, ["status", "error", "message"])
+    responses = {"E{}".format(status): _json(_ref("Error"), text) for status, text in ERROR_CODES.items()}
+    responses["E413"]["description"] += " ({} bytes here)".format(max_body_bytes)
+    pose = _object({"x": {"type": "number"}, "y": {"type": "number"}, "yaw": {"type": "number"}}, ["x", "y", "yaw"])
+    waypoint = _object(dict(pose["properties"], name={"type": "string"}), ["name", "x", "y", "yaw"])
+    estop = _object({"latched": {"type": "boolean"}, "source": {"type": "string", "nullable": True},
+                     "since": {"type": "string", "nullable": True}})
+    return {
+        "schemas": {"Error": error, "Pose": pose, "Waypoint": waypoint, "EStop": estop},
+        "responses": responses,
+        "securitySchemes": {"bearer": {"type": "http", "scheme": "bearer",
+                                       "description": "needed when the robot has a token"}},
+    }
+
+
+NO_FIELDS = {"type": "object", "maxProperties": 0}
+
+
+def _object(properties, required=()):
+    schema = {"type": "object", "properties": properties, "additionalProperties": False}
+    if required:
+        schema["required"] = list(required)
+    if not properties:  # an answer whose fields are described elsewhere (docs/api.md)
+        schema["additionalProperties"] = True
+    return schema
+
+
+def _ok(fields):
+    return _json(_object(dict({"status": {"enum": ["ok"]}}, **fields)))
+
+
+def _json(schema, text="ok"):
+    return {"description": text, "content": {"application/json": {"schema": schema}}}
+
+
+def _name(text=None):
+    """A waypoint name: the characters and length (waypoints.check_name also refuses '..' and '.')."""
+    schema = {"type": "string", "pattern": r"^[A-Za-z0-9_. -]{1,64}$"}
+    if text:
+        schema["description"] = text
+    return schema
+
+
+def _coordinate(limit):
+    return {"type": "number", "minimum": -limit, "maximum": limit}
+
+
+def _ref(name):
+    return {"$ref": "#/components/schemas/{}".format(name)}

@@ -1,0 +1,104 @@
+"""A robot without ROS for the web tests: the Robot facade's methods, each call recorded.
+
+The Flask app knows only the facade (robot.py), so validation, auth, the Host/Origin guard and the
+error shapes can be tested against this in milliseconds, as Flask's tutorial tests its app against
+a small test database. What ROS does with a request (goals reaching move_base, velocities on
+/cmd_vel, poses from tf) is tests/test_api.py's business, on the real robot.
+"""
+
+from flask_move_server.drive.estop import EStop
+from flask_move_server.errors import NoPose
+
+IDLE = "idle"
+
+
+class FakeRobot:
+    """Answers as a connected robot with move_base ready and nothing moving.
+
+    ``calls`` lists ``(method, args)`` in order. A goal is ``active`` until ``stop``/``teleop``
+    cancel it or ``wait`` finds it ``succeeded``. The e-stop is the real latch (drive/estop.py), so
+    goals and teleop are refused while it is latched, as by the real facade. ``pose``: the pose
+    ``current_pose`` gives (a Pose2D), or None for a robot that does not know where it is.
+    """
+
+    def __init__(self, pose=None):
+        self.calls = []
+        self.pose = pose
+        self.estop = EStop()
+        self.estop.when_engaged(lambda source: self.stop())
+        self.navigator = _Navigation()
+
+    def goto(self, goal):
+        self.calls.append(("goto", goal))
+        self.estop.refuse_motion("goals are")
+        return self.navigator.start(goal)
+
+    def wait(self, seq, timeout):
+        self.calls.append(("wait", seq, timeout))
+        self.navigator.state = "succeeded"
+        return True
+
+    def stop(self):
+        self.calls.append(("stop",))
+        return self.navigator.cancel()
+
+    def teleop(self, linear, angular):
+        self.calls.append(("teleop", linear, angular))
+        self.estop.refuse_motion("teleop is")
+        result = {"linear": linear, "angular": angular, "hold": 0.5}
+        if self.navigator.cancel():
+            result["canceled_goal"] = True
+        return result
+
+    def current_pose(self):
+        self.calls.append(("current_pose",))
+        if self.pose is None:
+            raise NoPose("The robot's pose is not known (fake robot).")
+        return self.pose
+
+    def moved(self):
+        """The calls that would have moved a real robot (goals and teleop)."""
+        return [call for call in self.calls if call[0] in ("goto", "teleop")]
+
+    def status(self):
+        return {
+            "pose": None,
+            "navigation": self.navigator.status(),
+            "teleop": {"active": False, "linear": 0.0, "angular": 0.0, "remaining": None, "deadman": 0.5},
+            "motors": {"backend": "none", "left": 0.0, "right": 0.0},
+            "estop": self.estop.status(),
+            "ros": {"state": "connected", "master_uri": "http://fake:11311", "node": "/fake"},
+        }
+
+    def health(self):
+        return {"status": "ok", "ros": "connected", "move_base": "ready"}
+
+    def close(self):
+        """Nothing to release."""
+
+
+class _Navigation:
+    """The goal state the facade reports; ``/goto`` with ``wait`` reads ``status()``."""
+
+    def __init__(self):
+        self.state = IDLE
+        self.goal = None
+        self.seq = 0
+
+    def start(self, goal):
+        self.goal, self.state = goal, "active"
+        self.seq += 1
+        return self.seq
+
+    def cancel(self):
+        """True when a goal was under way (now canceled)."""
+        if self.state != "active":
+            return False
+        self.state = "canceled"
+        return True
+
+    def status(self):
+        goal = self.goal
+        return {"state": self.state, "message": None, "target": goal.target if goal else None,
+                "goal": goal.pose.as_dict() if goal else None, "goal_id": self.seq or None,
+                "distance_remaining": None, "interface": "action"}
