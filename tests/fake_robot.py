@@ -26,27 +26,41 @@ class FakeRobot:
         self.pose = pose
         self.estop = EStop()
         self.estop.when_engaged(lambda source: self.stop())
-        self.navigator = _Navigation()
+        self._navigation = _Navigation()
 
     def goto(self, goal):
         self.calls.append(("goto", goal))
         self.estop.refuse_motion("goals are")
-        return self.navigator.start(goal)
+        return self._navigation.start(goal)
 
     def wait(self, seq, timeout):
         self.calls.append(("wait", seq, timeout))
-        self.navigator.state = "succeeded"
+        self._navigation.state = "succeeded"
         return True
+
+    def navigation_status(self):
+        return self._navigation.status()
+
+    def engage_estop(self, source):
+        self.calls.append(("engage_estop", source))
+        return self.estop.engage(source)
+
+    def release_estop(self):
+        self.calls.append(("release_estop",))
+        return self.estop.release()
+
+    def estop_status(self):
+        return self.estop.status()
 
     def stop(self):
         self.calls.append(("stop",))
-        return self.navigator.cancel()
+        return self._navigation.cancel()
 
     def teleop(self, linear, angular):
         self.calls.append(("teleop", linear, angular))
         self.estop.refuse_motion("teleop is")
         result = {"linear": linear, "angular": angular, "hold": 0.5}
-        if self.navigator.cancel():
+        if self._navigation.cancel():
             result["canceled_goal"] = True
         return result
 
@@ -63,7 +77,7 @@ class FakeRobot:
     def status(self):
         return {
             "pose": None,
-            "navigation": self.navigator.status(),
+            "navigation": self._navigation.status(),
             "teleop": {"active": False, "linear": 0.0, "angular": 0.0, "remaining": None, "deadman": 0.5},
             "motors": {"backend": "none", "left": 0.0, "right": 0.0},
             "estop": self.estop.status(),
@@ -78,7 +92,7 @@ class FakeRobot:
 
 
 class _Navigation:
-    """The goal state the facade reports; ``/goto`` with ``wait`` reads ``status()``."""
+    """The goal state the facade reports (``navigation_status``)."""
 
     def __init__(self):
         self.state = IDLE
