@@ -8,31 +8,22 @@ and a spike picked up from the motor wires do not latch, and a held button
 does. A button already held at start-up latches at once. While the button is
 held, releasing the latch is refused.
 
-RPi.GPIO is imported here, only when a pin is configured (``rpi-lgpio`` on a Pi 5).
+RPi.GPIO is imported (drive/gpio.py) only when a pin is configured (``rpi-lgpio`` on a Pi 5).
 """
 
 import logging
 import threading
 
+from flask_move_server.drive.gpio import import_gpio as _import_gpio
+from flask_move_server.drive.gpio import use_bcm
 from flask_move_server.errors import ConfigError, DriveError
 
 log = logging.getLogger(__name__)
 
 SOURCE = "button"
-INSTALL_HINT = (
-    "drive.estop_pin needs the RPi.GPIO module: install RPi.GPIO on a Raspberry Pi 1-4 "
-    "(sudo apt install python3-rpi.gpio), rpi-lgpio on a Pi 5 (sudo apt install python3-rpi-lgpio), "
-    "or set drive.estop_pin: null on a machine without the button"
-)
-
-
 def import_gpio():
     """The RPi.GPIO module; DriveError saying what to install when it is missing."""
-    try:
-        import RPi.GPIO as GPIO
-    except (ImportError, RuntimeError) as exc:  # RuntimeError: RPi.GPIO on a machine that is not a Pi
-        raise DriveError("{} ({})".format(INSTALL_HINT, exc))
-    return GPIO
+    return _import_gpio("drive.estop_pin", "set drive.estop_pin: null on a machine without the button")
 
 
 def check_pin(drive, source="(config)"):
@@ -70,12 +61,7 @@ class EStopButton:
 
     def _set_up(self):
         gpio = self.gpio
-        gpio.setwarnings(False)
-        mode = gpio.getmode()
-        if mode not in (None, gpio.BCM):
-            raise DriveError("GPIO numbering is already BOARD in this process; drive.estop_pin is BCM")
-        if mode is None:
-            gpio.setmode(gpio.BCM)
+        use_bcm(gpio, "drive.estop_pin")
         gpio.setup(self.pin, gpio.IN, pull_up_down=gpio.PUD_UP)
         gpio.add_event_detect(self.pin, gpio.FALLING, callback=self._edge)
 

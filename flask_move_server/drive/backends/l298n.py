@@ -7,7 +7,7 @@ motor coast, which is what the PWM off-phase does. Whatever happens (stop,
 close, SIGTERM through cli's ExitStack, an exception) every EN and IN pin ends
 low and our pins, only ours, are handed back with ``GPIO.cleanup(pins)``.
 
-RPi.GPIO is imported here, when this backend is chosen: on a Pi 5 the
+RPi.GPIO is imported (drive/gpio.py) when this backend is chosen: on a Pi 5 the
 ``rpi-lgpio`` package provides the same module.
 """
 
@@ -15,26 +15,15 @@ import logging
 import threading
 
 from flask_move_server.drive.backends import MotorBackend, register
+from flask_move_server.drive.gpio import import_gpio as _import_gpio
+from flask_move_server.drive.gpio import use_bcm
 from flask_move_server.errors import ConfigError, DriveError
 
 log = logging.getLogger(__name__)
 
-INSTALL_HINT = (
-    "the l298n motor backend needs the RPi.GPIO module: install RPi.GPIO on a Raspberry Pi 1-4 "
-    "(sudo apt install python3-rpi.gpio), rpi-lgpio on a Pi 5 (sudo apt install python3-rpi-lgpio), "
-    "or use --motor-backend sim on a machine without motors"
-)
-
-
 def import_gpio():
     """The RPi.GPIO module; DriveError saying what to install when it is missing."""
-    try:
-        import RPi.GPIO as GPIO
-    except ImportError as exc:
-        raise DriveError("{} ({})".format(INSTALL_HINT, exc))
-    except RuntimeError as exc:  # RPi.GPIO refuses to load on a machine that is not a Pi
-        raise DriveError("{} ({})".format(INSTALL_HINT, exc))
-    return GPIO
+    return _import_gpio("the l298n motor backend", "use --motor-backend sim on a machine without motors")
 
 
 def check_pins(l298n, source="(config)"):
@@ -132,13 +121,7 @@ class L298NBackend(MotorBackend):
             raise DriveError("cannot set up the L298N pins {}: {}".format(self.pins, exc))
 
     def _set_mode(self):
-        gpio = self.gpio
-        gpio.setwarnings(False)
-        mode = gpio.getmode()
-        if mode not in (None, gpio.BCM):
-            raise DriveError("GPIO numbering is already BOARD in this process; the drive config uses BCM")
-        if mode is None:
-            gpio.setmode(gpio.BCM)
+        use_bcm(self.gpio, "the drive config")
 
     def set(self, left, right):
         """Apply signed duties; on any GPIO failure the bridges are switched off and DriveError raised."""
