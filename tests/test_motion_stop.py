@@ -121,12 +121,37 @@ def test_status_right_after_stop_is_not_active_and_teleop_does_not_cancel_again(
         assert state == "canceled"  # no word comes in topic mode
     r = client.post("/teleop", json={"linear": 0.1})
     assert r.status_code == 200 and "canceled_goal" not in r.get_json()
-    assert client.post("/stop").get_json()["canceled_goal"] is False
     wait_for(lambda: client.get("/status").get_json()["navigation"]["state"] == "canceled",
              message="move_base to confirm the cancel")
     wait_for(lambda: cancels.snapshot(), message="the cancel on the wire")
-    time.sleep(0.3)  # a second cancel, if any were sent, has arrived by now
+    time.sleep(0.3)  # a second cancel, if the teleop had sent one, has arrived by now
     assert len(cancels.snapshot()) == 1
+    assert client.post("/stop").get_json()["canceled_goal"] is False
+
+
+def test_a_stop_racing_a_goto_cancels_that_goal(client, ready_robot, move_base):
+    """/stop arriving while /goto is still handing its goal to move_base must cancel that goal.
+
+    Sending a goal is slowed here (the real actionlib client, 0.3 s late) so the stop lands in
+    between, as it did now and then when both came at once from two clients.
+    """
+    navigator = ready_robot.navigator
+    real_send = navigator._client.send_goal
+
+    def slow_send(*args, **kwargs):
+        time.sleep(0.3)
+        return real_send(*args, **kwargs)
+
+    navigator._client.send_goal = slow_send
+    goto = threading.Thread(target=lambda: client.post("/goto", json={"x": HOLD_X, "y": 0}))
+    goto.start()
+    wait_for(lambda: client.get("/status").get_json()["navigation"]["state"] == "active", message="the goal")
+    stopped = client.post("/stop").get_json()
+    goto.join(10)
+    assert stopped["canceled_goal"] is True
+    wait_for(lambda: client.get("/status").get_json()["navigation"]["state"] == "canceled", timeout=5,
+             message="move_base to preempt the goal the stop raced")
+    assert len(move_base.goals) == 1
 
 
 def test_a_cancel_move_base_never_confirms_stays_canceling_and_says_why(client, ready_robot, move_base):

@@ -52,6 +52,8 @@ class Navigator:
         self._node = node
         self._pose = pose_tracker
         self._cond = threading.Condition()
+        # Held while a goal or a cancel is sent, so a cancel racing a goto cancels that goal, not the one before.
+        self._sending = threading.Lock()
         self._seq = 0
         self._state = IDLE
         self._goal = None
@@ -77,19 +79,20 @@ class Navigator:
     def goto(self, goal):
         """Send ``goal`` (a Goal); returns its sequence number. Replaces any goal under way."""
         self._check_reachable()
-        with self._cond:
-            self._seq += 1
-            seq = self._seq
-            self._goal, self._state, self._feedback_pose, self._message = goal, ACTIVE, None, None
-            self._cond.notify_all()
-        if self._client is not None:
-            self._client.send_goal(
-                _move_base_goal(goal.pose, self._frame),
-                done_cb=lambda status, result: self._done(seq, status),
-                feedback_cb=lambda feedback: self._feedback(seq, feedback),
-            )
-        else:
-            self._goal_pub.publish(pose_stamped(goal.pose, self._frame, rospy.Time.now()))
+        with self._sending:
+            with self._cond:
+                self._seq += 1
+                seq = self._seq
+                self._goal, self._state, self._feedback_pose, self._message = goal, ACTIVE, None, None
+                self._cond.notify_all()
+            if self._client is not None:
+                self._client.send_goal(
+                    _move_base_goal(goal.pose, self._frame),
+                    done_cb=lambda status, result: self._done(seq, status),
+                    feedback_cb=lambda feedback: self._feedback(seq, feedback),
+                )
+            else:
+                self._goal_pub.publish(pose_stamped(goal.pose, self._frame, rospy.Time.now()))
         log.info("goal %d: %s %s", seq, goal.target or "pose", goal.pose.as_dict())
         return seq
 
@@ -97,18 +100,21 @@ class Navigator:
         """Cancel the goal under way, if any; True when one was (not when its cancel is already sent).
 
         Action mode: ``canceling`` until move_base confirms (preempted or recalled);
-        topic mode: ``canceled`` at once.
+        topic mode: ``canceled`` at once. A goal still ``canceling`` gets its cancel sent again
+        (move_base may have missed it), but that does not count as canceling a goal.
         """
-        with self._cond:
-            if self._state != ACTIVE:
-                return False
-            seq = self._seq
-            self._state = CANCELING if self._client is not None else CANCELED
-            self._cancel_sent = time.monotonic()
-            self._cond.notify_all()
-        self._send_cancel()
-        log.info("goal %d: cancel requested", seq)
-        return True
+        with self._sending:
+            with self._cond:
+                if self._state not in (ACTIVE, CANCELING):
+                    return False
+                seq, newly = self._seq, self._state == ACTIVE
+                self._state = CANCELING if self._client is not None else CANCELED
+                if newly:
+                    self._cancel_sent = time.monotonic()
+                self._cond.notify_all()
+            self._send_cancel()
+        log.info("goal %d: cancel %s", seq, "requested" if newly else "sent again")
+        return newly
 
     def _send_cancel(self):
         client, cancel_pub = self._client, self._cancel_pub
