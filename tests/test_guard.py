@@ -108,6 +108,14 @@ def test_following_a_link_to_the_page_from_another_site_works(guarded):
     assert r.status_code == 200
 
 
+def test_a_form_post_marked_as_navigation_from_another_site_moves_nothing(guarded, robot):
+    """Only following a link (GET) is exempt; a cross-site form POST navigates too and must be refused."""
+    r = guarded.test_client().post("/goto", data=GOTO, content_type="text/plain", headers={
+        "Host": "robot.local:5000", "Sec-Fetch-Site": "cross-site", "Sec-Fetch-Mode": "navigate"})
+    assert r.status_code == 403 and r.get_json()["error"] == "forbidden_origin"
+    assert robot.moved() == []
+
+
 def test_the_guard_runs_before_the_token(robot_config, robot, store):
     client = create_app(robot_config, robot, store, token="s3cret").test_client()
     auth = {"Authorization": "Bearer s3cret"}

@@ -131,6 +131,19 @@ def test_a_control_character_in_a_url_name_is_a_bad_name_not_a_missing_endpoint(
     assert "kitchen\\ndoor" in r.get_json()["message"] and "letters, digits" in r.get_json()["message"]
 
 
+@pytest.mark.parametrize("method", ["GET", "PUT", "DELETE"])
+def test_a_doubled_slash_is_a_bad_name_not_an_html_redirect(client, method):
+    """/waypoints//kitchen: werkzeug would answer 308 with an HTML page, and a client following it re-sends."""
+    r = client.open("/waypoints//kitchen", method=method, json={"x": 1.0, "y": 1.0, "yaw": 0.0})
+    assert r.status_code == 400 and r.is_json, (r.status_code, r.get_data(as_text=True)[:80])
+    assert r.get_json()["error"] == "bad_waypoint"
+
+
+def test_a_field_an_endpoint_does_not_take_is_named_plainly(client):
+    r = client.post("/stop", json={"a": 1})
+    assert r.status_code == 400 and r.get_json()["message"] == 'Unknown field "a" (this endpoint takes no fields).'
+
+
 def test_dot_is_not_a_name_a_client_could_delete(client):
     r = client.put("/waypoints/.", json={"x": 1, "y": 2, "yaw": 0})
     assert r.status_code == 400 and "not '.' alone" in r.get_json()["message"]

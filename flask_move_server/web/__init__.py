@@ -27,6 +27,7 @@ def create_app(config, robot, store, token=None):
     app = Flask(__name__, static_folder="static", static_url_path="/static")
     app.response_class = UntypedResponse
     app.url_map.converters["waypoint"] = WaypointNameConverter
+    app.url_map.merge_slashes = False  # /waypoints//a is the name "/a" (a 400), not an HTML redirect
     app.config["MAX_CONTENT_LENGTH"] = config.server.max_body_bytes
     app.json.sort_keys = False
     app.extensions["flask_move_server"] = {"config": config, "robot": robot, "store": store}

@@ -26,5 +26,7 @@ def init_app(app, token):
                 "(robotctl: --token or ROBOT_TOKEN)."
             )
         if not hmac.compare_digest(given.strip().encode("utf-8"), expected):
-            raise Unauthorized("Wrong token. The robot's token is in its config (server.token_file).")
+            raise Unauthorized("Wrong token. The robot's token is in its FLASK_MOVE_SERVER_TOKEN environment "
+                               "(/etc/flask-move-server/token.env after scripts/install), or server.token / "
+                               "server.token_file in its config.")
         return None

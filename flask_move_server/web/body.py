@@ -42,8 +42,8 @@ def json_object(allowed, required=True):
         raise BadRequest("The body must be a JSON object, e.g. {}.".format(_example(allowed)))
     unknown = sorted(set(data) - set(allowed))
     if unknown:
-        raise BadRequest("Unknown field {} (this endpoint takes {}).".format(
-            json.dumps(unknown[0]), ", ".join(sorted(allowed))))
+        takes = "takes " + ", ".join(sorted(allowed)) if allowed else "takes no fields"
+        raise BadRequest("Unknown field {} (this endpoint {}).".format(json.dumps(unknown[0]), takes))
     return data
 
 

@@ -84,7 +84,7 @@ def init_app(app, config):
                 "This robot does not know the name {} it was called by (the Host header), so the request is "
                 "refused: a web page can give its own name the robot's address. If the robot has that name on "
                 "your network, add it to server.allowed_hosts in its config.".format(_shown(host_name(host))))
-        problem = cross_site(request.headers)
+        problem = cross_site(request.headers, request.method)
         if problem:
             raise ForbiddenOrigin(
                 "Requests from other web pages are refused ({}), so a page you visit cannot drive the robot. "
@@ -92,13 +92,14 @@ def init_app(app, config):
         return None
 
 
-def cross_site(headers):
+def cross_site(headers, method="GET"):
     """Why a request with these headers comes from another site's page (a short phrase), or None."""
     origin = headers.get("Origin")
     if origin is not None and not _same_origin(origin, headers.get("Host")):
         return "Origin: {}{}".format(_shown(origin), ", a sandboxed page or a file" if origin == "null" else "")
     fetch_site = headers.get("Sec-Fetch-Site", "").lower()
-    if fetch_site == "cross-site" and headers.get("Sec-Fetch-Mode", "").lower() != "navigate":
+    navigating = headers.get("Sec-Fetch-Mode", "").lower() == "navigate" and method in ("GET", "HEAD")
+    if fetch_site == "cross-site" and not navigating:  # following a link to the page is fine; a form post is not
         return "Sec-Fetch-Site: cross-site"
     return None
 

@@ -111,7 +111,7 @@ class WaypointNameConverter(PathConverter):
     refuse it with a 400 that says what a name may hold.
     """
 
-    regex = r"[^/][\s\S]*?"
+    regex = r"[\s\S]+?"
     part_isolating = False
 
 
