@@ -102,3 +102,18 @@ def test_roslaunch_setting_a_run_id_on_the_running_master_is_not_a_new_master(se
         assert not server.find("a new ROS master answers")
     finally:
         stop_process(master)
+
+
+def test_a_second_server_taking_the_node_name_stops_the_first_saying_why(server_factory, master_port):
+    """rospy shuts a node down when another registers its name: the first server must not claim 'connected'."""
+    master = start_master(master_port)
+    try:
+        first = server_factory(master_port)
+        wait_for(lambda: first.get("/health").json()["ros"] == "connected", timeout=30)
+        second = server_factory(master_port)
+        wait_for(lambda: second.get("/health").json()["ros"] == "connected", timeout=30)
+        assert first.proc.wait(20) == 3, "the first server kept serving without its ROS node"
+        assert first.find("another node registered as /flask_move_server")
+        assert second.get("/health").json()["ros"] == "connected"
+    finally:
+        stop_process(master)

@@ -167,6 +167,9 @@ class RosNode:
     def _watch(self):
         while not self._stop.wait(self.check_period):
             identity = master.identity(self.name, timeout=max(1.0, self.check_period))
+            if self._owns_rospy and _rospy_shut_down() and not self._stop.is_set():
+                self._name_taken()
+                return
             if identity is None:
                 self._master_gone()
             elif not self._identity.same_master(identity):
@@ -185,6 +188,19 @@ class RosNode:
         log.error("the ROS master at %s stopped answering; motors stopped, goals unavailable", self.master_uri)
         for callback in self._lost_callbacks:
             _call(callback)
+
+    def _name_taken(self):
+        """rospy shut this node down: another node registered with our name (a second server?)."""
+        self.state = LOST
+        for callback in self._lost_callbacks:
+            _call(callback)
+        message = (
+            "another node registered as {} with the ROS master at {} (a second server on the same master?), "
+            "so rospy shut this one down; give each server its own ros.node_name".format(self.name, self.master_uri)
+        )
+        log.error(message)
+        if self.on_fatal is not None:
+            self.on_fatal(message)
 
     def _master_replaced(self):
         self.state = NEW_MASTER
@@ -213,3 +229,9 @@ def _part_name(callback):
     if owner is not None:
         return type(owner).__name__
     return getattr(callback, "__qualname__", repr(callback))
+
+
+def _rospy_shut_down():
+    import rospy
+
+    return rospy.core.is_shutdown()
