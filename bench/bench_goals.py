@@ -143,38 +143,50 @@ def collect(server, standin):
     return reached, answered
 
 
+def cpu_seconds(pid):
+    """User + system CPU time of process ``pid`` so far, from /proc."""
+    with open("/proc/{}/stat".format(pid)) as f:
+        fields = f.read().rsplit(")", 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+
 def measure(servers, standin, opts):
-    """Rows of (rate label, server name, goal latencies, HTTP answer times)."""
+    """Rows of (rate label, server name, goal latencies, HTTP answer times, server CPU ms per goal)."""
     rows = []
     for server in servers:
         drive([server], 0.05, 20, 9000.0)  # warm-up: connections, caches, the first goal's set-up
         collect(server, standin)
+    cpu = [cpu_seconds(server.proc.pid) for server in servers]
     drive(servers, 0.6, opts.goals, 0.0)
-    for server in servers:
-        rows.append(("1 every 0.6 s", server.name) + collect(server, standin))
+    for server, before in zip(servers, cpu):
+        per_goal = (cpu_seconds(server.proc.pid) - before) * 1000 / opts.goals
+        rows.append(("1 every 0.6 s", server.name) + collect(server, standin) + (per_goal,))
     x = 1000.0
     for rate in (10, 35):
-        results = {server.name: ([], []) for server in servers}
+        results = {server.name: ([], [], 0.0) for server in servers}
         for _ in range(2):
             for server in servers:
+                before = cpu_seconds(server.proc.pid)
                 drive([server], 1.0 / rate, opts.burst // 2, x)
                 x += 1000.0
                 reached, answered = collect(server, standin)
-                results[server.name][0].extend(reached)
-                results[server.name][1].extend(answered)
+                so_far = results[server.name]
+                results[server.name] = (so_far[0] + reached, so_far[1] + answered,
+                                        so_far[2] + cpu_seconds(server.proc.pid) - before)
         for server in servers:
-            rows.append(("{} per second".format(rate), server.name) + results[server.name])
+            reached, answered, cpu_s = results[server.name]
+            rows.append(("{} per second".format(rate), server.name, reached, answered, cpu_s * 1000 / len(reached)))
     return rows
 
 
 def print_table(rows):
     print("| POST /goto until the goal reaches move_base | server | goals | p50 ms | p99 ms | max ms "
-          "| HTTP answer p50 ms |")
-    print("|---|---|---:|---:|---:|---:|---:|")
-    for rate, name, reached, answered in rows:
-        print("| {} | {} | {} | {:.2f} | {:.2f} | {:.2f} | {:.2f} |".format(
+          "| HTTP answer p50 ms | server CPU per goal ms |")
+    print("|---|---|---:|---:|---:|---:|---:|---:|")
+    for rate, name, reached, answered, cpu_ms in rows:
+        print("| {} | {} | {} | {:.2f} | {:.2f} | {:.2f} | {:.2f} | {:.2f} |".format(
             rate, name, len(reached), percentile(reached, 50), percentile(reached, 99), max(reached),
-            percentile(answered, 50)))
+            percentile(answered, 50), cpu_ms))
 
 
 def start_profiler(pid, path):
