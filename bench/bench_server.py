@@ -1,9 +1,8 @@
-"""Benchmark of the server core (issue 2): goal latency, /status throughput, RSS, idle CPU, start-up.
+"""Benchmark of the server core (issue 2): /status throughput, RSS, idle CPU, start-up.
 
 Run: ``.venv/bin/python bench/bench_server.py`` (starts its own ROS master). Prints markdown
-tables for docs/performance.md. Compares against ``bench/bare_server.py``: one Flask route on
-waitress publishing the same goal message with rospy, and the same app on werkzeug's
-development server for the throughput baseline.
+tables for docs/performance.md. Compares against ``bench/bare_server.py`` on waitress and on
+werkzeug's development server. Goal latency has its own benchmark: ``bench/bench_goals.py``.
 """
 
 import argparse
@@ -22,30 +21,17 @@ sys.path.insert(0, ROOT)
 from tests.conftest import free_port, start_master, stop_process, wait_for  # noqa: E402
 
 
-def percentile(values, q):
-    values = sorted(values)
-    return values[min(len(values) - 1, int(round(q / 100.0 * (len(values) - 1))))]
-
-
-class GoalWatch:
-    """A real actionlib move_base in this process, and the arrival time of every goal."""
+class MoveBase:
+    """A real actionlib move_base in this process, so the server runs as it does on the robot."""
 
     def __init__(self, action):
         import actionlib
         from move_base_msgs.msg import MoveBaseAction, MoveBaseResult
 
-        self.arrivals = {}
         self._server = actionlib.SimpleActionServer(
             action, MoveBaseAction, execute_cb=lambda goal: self._server.set_succeeded(MoveBaseResult()),
             auto_start=False)
-        import rospy
-        from move_base_msgs.msg import MoveBaseActionGoal
-
-        self._sub = rospy.Subscriber(action + "/goal", MoveBaseActionGoal, self._on_goal, tcp_nodelay=True)
         self._server.start()
-
-    def _on_goal(self, msg):
-        self.arrivals[round(msg.goal.target_pose.pose.position.x, 6)] = time.perf_counter()
 
 
 def start_server(args, env):
@@ -65,21 +51,6 @@ def request(conn, method, path, body=None):
     response = conn.getresponse()
     data = response.read()
     return response.status, data
-
-
-def goal_latency(host, port, path, watch, count, offset):
-    conn = http.client.HTTPConnection(host, port, timeout=10)
-    latencies = []
-    for i in range(count):
-        x = offset + i * 0.001
-        sent = time.perf_counter()
-        status, _ = request(conn, "POST", path, json.dumps({"x": x, "y": 0.0, "yaw": 0.0}))
-        assert status in (200, 202), status
-        key = round(x, 6)
-        wait_for(lambda key=key: key in watch.arrivals, timeout=10, interval=0.0005)
-        latencies.append((watch.arrivals[key] - sent) * 1000)
-        time.sleep(0.01)
-    return latencies
 
 
 def throughput(host, port, path, seconds, connections=8):
@@ -117,7 +88,6 @@ def rss_mb(pid):
 
 def main():
     parser = argparse.ArgumentParser(description=__doc__)
-    parser.add_argument("--goals", type=int, default=300)
     parser.add_argument("--seconds", type=float, default=5.0)
     parser.add_argument("--idle", type=float, default=10.0)
     opts = parser.parse_args()
@@ -132,8 +102,7 @@ def main():
         import rospy
 
         rospy.init_node("bench", disable_signals=True)
-        watch = GoalWatch("move_base")
-        bare_watch = GoalWatch("bare/move_base")
+        MoveBase("move_base")
         waypoints = os.path.join(home, "waypoints.yaml")
         ours, host, our_port, started = start_server(
             [sys.executable, "-m", "flask_move_server", "--host", "127.0.0.1", "--port", "0", "--no-mdns",
@@ -149,13 +118,6 @@ def main():
         dev, dhost, dport, _ = start_server(
             [sys.executable, os.path.join(ROOT, "bench", "bare_server.py"), "--werkzeug"], env)
         procs.append(dev)
-        time.sleep(2)  # let the bare publishers connect to the goal subscribers
-
-        goal_latency(host, our_port, "/goto", watch, 20, 1000.0)  # warm-up
-        ours_ms = goal_latency(host, our_port, "/goto", watch, opts.goals, 0.0)
-        goal_latency(bhost, bport, "/goto", bare_watch, 20, 2000.0)
-        bare_ms = goal_latency(bhost, bport, "/goto", bare_watch, opts.goals, 500.0)
-        request(conn, "POST", "/stop")
 
         ours_rps = throughput(host, our_port, "/status", opts.seconds)
         bare_rps = throughput(bhost, bport, "/status", opts.seconds)
@@ -167,12 +129,6 @@ def main():
         time.sleep(opts.idle)
         idle_pct = (cpu_seconds(ours.pid) - before) / opts.idle * 100
 
-        print("| POST /goto until the goal reaches move_base ({} goals) | p50 ms | p99 ms |".format(opts.goals))
-        print("|---|---|---|")
-        print("| flask-move-server | {:.2f} | {:.2f} |".format(percentile(ours_ms, 50), percentile(ours_ms, 99)))
-        print("| bare Flask + rospy on waitress | {:.2f} | {:.2f} |".format(
-            percentile(bare_ms, 50), percentile(bare_ms, 99)))
-        print()
         print("| GET /status, 8 keep-alive connections, {:.0f} s | requests/s |".format(opts.seconds))
         print("|---|---|")
         print("| flask-move-server (waitress) | {:.0f} |".format(ours_rps))
@@ -188,6 +144,8 @@ def main():
         for p in procs:
             stop_process(p)
         stop_process(master)
+        if "rospy" in sys.modules:
+            sys.modules["rospy"].signal_shutdown("benchmark done")  # else its threads keep this process
 
 
 if __name__ == "__main__":

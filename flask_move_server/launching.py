@@ -89,11 +89,14 @@ def setup_logging(level):
         handler.setFormatter(JournalFormatter())
     else:
         handler.setFormatter(logging.Formatter("%(asctime)s %(levelname)s %(name)s: %(message)s"))
-    # Not on the root logger: rospy.init_node replaces the root logger's handlers.
+    # Not on the root logger: rospy.init_node replaces the root logger's handlers. And not passed on
+    # to them either (propagate): rospy's root handler writes and flushes every record to a rotating
+    # ROS log file, on the request thread and while the goal waits for the GIL to be sent.
     for name in ("flask_move_server", "waitress"):
         logger = logging.getLogger(name)
         logger.handlers[:] = [handler]
         logger.setLevel(level)
+        logger.propagate = False
 
 
 class JournalFormatter(logging.Formatter):

@@ -33,7 +33,7 @@ class Robot:
         """Send the robot to ``goal``; returns the goal's sequence number."""
         self._refuse_motion("goals are")
         seq = self.navigator.goto(goal)
-        self.teleop_control.stop()
+        self.teleop_control.end_command()
         self._unless_latched_meanwhile()
         return seq
 

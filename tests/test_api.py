@@ -6,6 +6,7 @@ and AMCL. Validation, auth and error shapes, which ROS plays no part in, are tes
 
 import json
 import math
+import time
 
 import requests
 
@@ -156,6 +157,25 @@ def test_pose_falls_back_to_amcl_pose(client, robot, robot_config):
 
 
 # -- teleop ------------------------------------------------------------------------------------
+
+
+def test_a_goal_ends_teleop_with_a_zero_twist_and_leaves_cmd_vel_alone_when_nobody_drives(
+        client, ready_robot, move_base, robot_config):
+    from geometry_msgs.msg import Twist
+
+    heard = Recorder(robot_config.teleop.topic, Twist)
+    try:
+        wait_for(lambda: ready_robot.teleop_control._pub.get_num_connections(), message="cmd_vel to connect")
+        assert client.post("/goto", json={"x": HOLD_X, "y": 0}).status_code == 202
+        time.sleep(0.3)  # a Twist, had one been sent, has arrived by now
+        assert heard.snapshot() == [], "no zero Twist for a base nobody drives"
+        assert client.post("/teleop", json={"linear": 0.2}).status_code == 200
+        wait_for(lambda: heard.snapshot(), message="the teleop Twist")
+        assert client.post("/goto", json={"x": HOLD_X, "y": 0}).status_code == 202
+        assert client.get("/status").get_json()["teleop"]["active"] is False
+        wait_for(lambda: heard.snapshot()[-1][1].linear.x == 0, timeout=5, message="the zero Twist ending teleop")
+    finally:
+        heard.close()
 
 
 def test_teleop_publishes_clamped_velocity_held_then_zero(client, robot, robot_config):

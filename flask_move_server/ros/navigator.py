@@ -22,6 +22,7 @@ from move_base_msgs.msg import MoveBaseAction, MoveBaseGoal
 
 from flask_move_server.errors import NavigationUnavailable, RosUnavailable
 from flask_move_server.ros.convert import pose_from_msg, pose_stamped
+from flask_move_server.ros.action_status import read_status_lightly
 
 log = logging.getLogger(__name__)
 
@@ -69,7 +70,9 @@ class Navigator:
 
     def _setup(self):
         if self._config.goal_interface == "action":
-            self._client = actionlib.SimpleActionClient(self._config.action, MoveBaseAction)
+            client = actionlib.SimpleActionClient(self._config.action, MoveBaseAction)
+            read_status_lightly(client.action_client)  # move_base's status array: only our goal's entry
+            self._client = client
         else:
             self._goal_pub = rospy.Publisher(self._config.simple_goal_topic, PoseStamped, queue_size=1, latch=False)
             self._cancel_pub = rospy.Publisher(self._config.action + "/cancel", GoalID, queue_size=1)

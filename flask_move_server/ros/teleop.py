@@ -69,6 +69,17 @@ class Teleop:
         if self._pub is not None and self._node.connected and not self._closed:
             self._pub.publish(Twist())
 
+    def end_command(self):
+        """End a command in force with one zero Twist (as :meth:`stop`); with none in force, publish nothing.
+
+        A goal ends teleop this way: a zero Twist on every goal would be one more message on
+        the goal's way, competing with it for the GIL, to stop a base nobody drives.
+        """
+        with self._cond:
+            in_force = self._deadline is not None
+        if in_force:
+            self.stop()
+
     def status(self):
         """The ``teleop`` part of ``/status``."""
         with self._cond:

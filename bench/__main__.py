@@ -1,0 +1,56 @@
+"""Every benchmark, with short runs: ``make bench`` (or ``.venv/bin/python -m bench``).
+
+Each benchmark runs as its own process (each starts its own ROS master and rospy node, and a
+process has one node) and prints its markdown tables under a heading that names the command
+behind it. The runs are shorter than the ones docs/performance.md reports, so the whole takes a
+few minutes; run a benchmark's script with its documented options to reproduce a table there.
+``python -m bench goals teleop`` runs only those.
+"""
+
+import os
+import subprocess
+import sys
+import time
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+TIMEOUT = 600  # s: a benchmark that hangs is killed (subprocess.call kills it) and reported failed
+
+# (name, script, short-run options): the order is cheapest first, so a broken setup fails early.
+BENCHMARKS = [
+    ("server", "bench_server.py", ["--seconds", "2", "--idle", "3"]),
+    ("goals", "bench_goals.py", ["--goals", "30", "--burst", "100"]),
+    ("teleop", "bench_teleop.py", ["--requests", "100", "--seconds", "4"]),
+    ("sim", "bench_sim.py", ["--repeat", "3", "--drive-seconds", "8"]),
+    ("abuse", "bench_abuse.py", ["--connections", "100", "--rounds", "10", "--signals", "2",
+                                 "--storm-seconds", "4"]),
+]
+
+
+def run(name, script, options):
+    """Run one benchmark; its tables go to stdout as it prints them. True when it succeeded."""
+    command = [sys.executable, os.path.join(HERE, script)] + options
+    print("## {}: `python bench/{} {}`\n".format(name, script, " ".join(options)), flush=True)
+    started = time.monotonic()
+    try:
+        code = subprocess.call(command, cwd=os.path.dirname(HERE), timeout=TIMEOUT)
+    except subprocess.TimeoutExpired:
+        code = "timeout after {} s".format(TIMEOUT)
+    print("\n({} took {:.0f} s{})\n".format(
+        name, time.monotonic() - started, "" if code == 0 else ", FAILED: {}".format(code)),
+        flush=True)
+    return code == 0
+
+
+def main(argv):
+    chosen = [b for b in BENCHMARKS if not argv or b[0] in argv]
+    unknown = set(argv) - {b[0] for b in BENCHMARKS}
+    if unknown:
+        sys.exit("unknown benchmark(s): {}; choose from {}".format(
+            ", ".join(sorted(unknown)), ", ".join(b[0] for b in BENCHMARKS)))
+    failed = [name for name, script, options in chosen if not run(name, script, options)]
+    if failed:
+        sys.exit("failed: " + ", ".join(failed))
+
+
+if __name__ == "__main__":
+    main(sys.argv[1:])
