@@ -21,8 +21,8 @@ from geometry_msgs.msg import PoseStamped
 from move_base_msgs.msg import MoveBaseAction, MoveBaseGoal
 
 from flask_move_server.errors import NavigationUnavailable, RosUnavailable
-from flask_move_server.ros.convert import pose_from_msg, pose_stamped
 from flask_move_server.ros.action_status import read_status_lightly
+from flask_move_server.ros.convert import pose_from_msg, pose_stamped
 
 log = logging.getLogger(__name__)
 
