@@ -23,7 +23,6 @@ import os
 import re
 import shutil
 import signal
-import subprocess
 import sys
 import tempfile
 import threading
@@ -32,7 +31,7 @@ import time
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, ROOT)
 
-from tests.conftest import free_port, stop_process, wait_for  # noqa: E402
+from tests.conftest import ServerProcess, free_port, wait_for  # noqa: E402
 from tests.hostile import HostileClients  # noqa: E402
 
 TOKEN = "bench-abuse-token"
@@ -45,36 +44,19 @@ def percentile(values, q):
     return values[min(len(values) - 1, int(round(q / 100.0 * (len(values) - 1))))]
 
 
-class SimServer:
-    """``flask-move-server --sim`` with a token, as its own process; stderr kept as it comes."""
+class SimServer(ServerProcess):
+    """``flask-move-server --sim`` with a token, as its own process (the tests' ServerProcess)."""
 
     def __init__(self, home):
         shutil.copy(os.path.join(ROOT, "config", "waypoints.demo.yaml"), os.path.join(home, "waypoints.yaml"))
         with open(os.path.join(home, "sim.yaml"), "w") as f:
             f.write("server:\n  token: {}\n".format(TOKEN))
-        env = dict(os.environ, ROS_MASTER_URI="http://127.0.0.1:{}".format(free_port()), ROS_HOME=home,
-                   ROS_LOG_DIR=os.path.join(home, "log"), ROS_IP="127.0.0.1", PYTHONUNBUFFERED="1")
-        self.proc = subprocess.Popen(
-            [sys.executable, "-m", "flask_move_server", "--sim", "--config", os.path.join(home, "sim.yaml"),
-             "--port", "0", "--no-mdns", "--waypoints", os.path.join(home, "waypoints.yaml")],
-            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, env=env, text=True, cwd=ROOT)
-        self.lines = []
-        threading.Thread(target=self._read, daemon=True).start()
-        found = wait_for(lambda: self.find(r"serving the API on http://[\d.]+:(\d+)"), timeout=60,
-                         message="the server to start")
-        self.port = int(found.group(1))
+        env = {"ROS_MASTER_URI": "http://127.0.0.1:{}".format(free_port()), "ROS_HOME": home,
+               "ROS_LOG_DIR": os.path.join(home, "log"), "ROS_IP": "127.0.0.1"}
+        super().__init__("--sim", "--config", os.path.join(home, "sim.yaml"), "--port", "0", "--no-mdns",
+                         "--waypoints", os.path.join(home, "waypoints.yaml"), env=env, start_timeout=60)
+        self.port = int(self.url.rsplit(":", 1)[1])
         wait_for(lambda: self.call("GET", "/health")[1].get("move_base") == "ready", timeout=30)
-
-    def _read(self):
-        for line in self.proc.stderr:
-            self.lines.append(line)
-
-    def find(self, pattern):
-        for line in list(self.lines):
-            m = re.search(pattern, line)
-            if m:
-                return m
-        return None
 
     def call(self, method, path, body=None, timeout=10):
         """One request on a fresh connection (as curl or the phone would); (status, JSON, seconds)."""
@@ -97,7 +79,7 @@ class SimServer:
         wait_for(lambda: self.motors() != (0.0, 0.0), timeout=20, message="the robot to drive")
 
     def close(self):
-        stop_process(self.proc)
+        self.kill()
 
 
 def stop_with_hostile_connections(server, count, rounds):
