@@ -1,5 +1,6 @@
 """The maps folder, map_saver's file pair and map images (flask_move_server.maps): pure, no ROS."""
 
+import math
 import os
 import struct
 import zlib
@@ -228,10 +229,31 @@ def test_names_that_are_not_a_safe_file_name_are_refused(maps, name):
     assert not os.path.exists(maps.folder) or os.listdir(maps.folder) == []
 
 
-def test_names_like_waypoint_names_are_fine(maps):
-    for name in ("flat 2", "lab_B-1", "v1.2"):
+def test_names_like_waypoint_names_are_fine_even_those_yaml_would_misread(maps):
+    names = ["- odd", "flat 2", "lab_B-1", "v1.2", "yes"]
+    for name in names:
         maps.save(name, small_grid())
-    assert [m.name for m in maps.list()] == ["flat 2", "lab_B-1", "v1.2"]
+    assert [m.name for m in maps.list()] == names
+    for name in names:  # map_server finds each image by the YAML's image key
+        assert occupancy.load(maps.yaml_path(name)).cells == FOLDED
+
+
+def test_a_broken_map_is_listed_with_its_problem_and_can_be_deleted(maps):
+    maps.save("flat", small_grid())
+    os.unlink(os.path.join(maps.folder, "flat.pgm"))
+    (info,) = maps.list()
+    assert info.width is None and "flat.pgm" in info.as_dict()["problem"]
+    with pytest.raises(MapFileError, match="flat"):
+        maps.load("flat")
+    maps.delete("flat")
+    assert maps.list() == []
+
+
+def test_cells_out_of_int8_or_a_bad_resolution_are_refused():
+    with pytest.raises(ValueError, match="int8"):
+        small_grid([200] * 8)
+    with pytest.raises(ValueError, match="resolution"):
+        Grid(1, 1, 0.0, 0.0, 0.0, [0])
 
 
 # images -------------------------------------------------------------------------------------
@@ -295,6 +317,14 @@ def test_the_margin_stops_at_the_edge_of_the_grid():
     image = render.render(grid, margin=10.0)
     assert (image.width, image.height, image.origin_x, image.origin_y) == (3, 2, 0.0, 0.0)
     assert decode_png(image.png)[2] == [[205, 205, 0], [254, 205, 205]]
+
+
+def test_the_crop_origin_of_a_rotated_map_turns_with_it():
+    grid = room_grid()
+    turned = Grid(grid.width, grid.height, 0.1, 1.0, 2.0, grid.cells, origin_yaw=math.pi / 2)
+    image = render.render(turned, margin=1.0)
+    # The crop starts 4 m along the grid's x axis (the map's +y) and 2 m along its y (the map's -x).
+    assert image.metadata()["origin"] == pytest.approx([1.0 - 2.0, 2.0 + 4.0, math.pi / 2])
 
 
 def test_an_all_unknown_map_gives_a_small_valid_image_and_says_it_is_empty():

@@ -19,6 +19,7 @@ Pure: no rospy.
 
 import array
 import json
+import math
 import os
 import tempfile
 from dataclasses import dataclass
@@ -46,6 +47,9 @@ class Grid:
     origin_yaw: float = 0.0
 
     def __post_init__(self):
+        if not (self.resolution > 0 and math.isfinite(self.resolution)):
+            raise ValueError("a grid's resolution must be a positive number of metres, got {!r}".format(
+                self.resolution))
         self.cells = cells_as_bytes(self.cells)
         if len(self.cells) != self.width * self.height:
             raise ValueError("a {} x {} grid needs {} cells, got {}".format(
@@ -63,7 +67,10 @@ def cells_as_bytes(cells):
         return cells
     if isinstance(cells, (bytearray, memoryview)):
         return bytes(cells)
-    return array.array("b", cells).tobytes()
+    try:
+        return array.array("b", cells).tobytes()
+    except OverflowError:
+        raise ValueError("occupancy cells are int8 values, -128..127 (-1 unknown, 0..100)") from None
 
 
 def pixel_table(free=MAP_SAVER_FREE, occupied=MAP_SAVER_OCCUPIED):
