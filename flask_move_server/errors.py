@@ -174,3 +174,36 @@ class PlanningFailed(MoveServerError, RuntimeError):
     def __init__(self, reason, message):
         self.reason = reason
         super().__init__(message)
+
+
+class BadMapName(BadRequest):
+    """A map name breaks the naming rule (it becomes a file name in the maps folder)."""
+
+    code = "bad_map_name"
+
+
+class UnknownMap(MoveServerError, KeyError):
+    """No map in the maps folder has the requested name."""
+
+    code = "unknown_map"
+
+    def __str__(self):
+        return self.args[0]
+
+
+class MapExists(MoveServerError, FileExistsError):
+    """A map with that name is already saved, and overwriting it was not asked for."""
+
+    code = "map_exists"
+
+
+class MapInUse(MoveServerError, RuntimeError):
+    """The map is the one in use now: it cannot be deleted or renamed under the running stack."""
+
+    code = "map_in_use"
+
+
+class MapFileError(MoveServerError, OSError):
+    """A map's files cannot be read or written (folder read-only or full, a broken file)."""
+
+    code = "map_file"

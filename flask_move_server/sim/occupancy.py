@@ -60,7 +60,7 @@ class OccupancyMap:
 
 def load(yaml_path):
     """Read a map_server map (YAML + PGM) into an :class:`OccupancyMap`."""
-    meta = _read_meta(yaml_path)
+    meta = read_meta(yaml_path)
     image_path = os.path.join(os.path.dirname(os.path.abspath(yaml_path)), meta["image"])
     try:
         with open(image_path, "rb") as f:
@@ -74,7 +74,8 @@ def load(yaml_path):
                         source=str(yaml_path))
 
 
-def _read_meta(path):
+def read_meta(path, rotated_ok=False):
+    """The checked keys of a map_server YAML; a rotated origin only when ``rotated_ok`` (the sim needs yaw 0)."""
     try:
         with open(path, encoding="utf-8") as f:
             meta = yaml.safe_load(f)
@@ -84,7 +85,7 @@ def _read_meta(path):
         raise ConfigError(path, None, "not valid YAML: {}".format(" ".join(str(exc).split())))
     if not isinstance(meta, dict):
         raise ConfigError(path, None, "a map_server map YAML must be a mapping (image:, resolution:, origin:, ...)")
-    return _check_meta(path, meta)
+    return _check_meta(path, meta, rotated_ok)
 
 
 def _number(path, meta, key, default=None):
@@ -94,7 +95,7 @@ def _number(path, meta, key, default=None):
     return float(value)
 
 
-def _check_meta(path, meta):
+def _check_meta(path, meta, rotated_ok=False):
     for key in ("image", "resolution", "origin"):
         if key not in meta:
             raise ConfigError(path, key, "missing (map_server needs image, resolution and origin)")
@@ -104,7 +105,7 @@ def _check_meta(path, meta):
     if not isinstance(origin, list) or len(origin) != 3:
         raise ConfigError(path, "origin", "must be [x, y, yaw], got {!r}".format(origin))
     origin = [_number(path, {"origin": v}, "origin") for v in origin]
-    if abs(origin[2]) > 1e-9:
+    if abs(origin[2]) > 1e-9 and not rotated_ok:
         raise ConfigError(path, "origin", "the simulator needs an unrotated map (yaw 0), got yaw {}".format(origin[2]))
     checked = {
         "image": meta["image"],
@@ -128,14 +129,19 @@ def _check_meta(path, meta):
 
 def cells_from_pixels(width, height, pixels, meta):
     """map_server's pixel → cell rule, flipping rows so the grid's row 0 is the image's bottom row."""
-    negate, mode = bool(meta.get("negate", 0)), meta.get("mode", "trinary")
-    occ_th, free_th = meta.get("occupied_thresh", 0.65), meta.get("free_thresh", 0.196)
-    table = [_cell_value(p, negate, mode, occ_th, free_th) for p in range(256)]
+    table = cell_table(meta)
     cells = []
     for row in range(height - 1, -1, -1):
         start = row * width
         cells.extend(table[p] for p in pixels[start:start + width])
     return cells
+
+
+def cell_table(meta):
+    """The cell value of each pixel value 0..255 under the YAML's negate, mode and thresholds."""
+    negate, mode = bool(meta.get("negate", 0)), meta.get("mode", "trinary")
+    occ_th, free_th = meta.get("occupied_thresh", 0.65), meta.get("free_thresh", 0.196)
+    return [_cell_value(p, negate, mode, occ_th, free_th) for p in range(256)]
 
 
 def _cell_value(pixel, negate, mode, occ_th, free_th):
@@ -154,12 +160,7 @@ def _cell_value(pixel, negate, mode, occ_th, free_th):
 def parse_pgm(data):
     """(width, height, pixels 0..255 top row first) of a binary (P5) or ASCII (P2) PGM."""
     magic = data[:2]
-    if magic not in (b"P5", b"P2"):
-        raise ValueError("not a PGM image (P5 or P2); convert it with e.g. `convert map.png map.pgm`")
-    tokens, pos = _header_tokens(data, 3)
-    width, height, maxval = tokens
-    if width <= 0 or height <= 0 or not 0 < maxval < 65536:
-        raise ValueError("bad PGM header {} x {}, maxval {}".format(width, height, maxval))
+    width, height, maxval, pos = pgm_header(data)
     count = width * height
     if magic == b"P2":
         values = [int(v) for v in data[pos:].split()[:count]]
@@ -173,6 +174,17 @@ def parse_pgm(data):
     if maxval != 255:
         values = [min(255, v * 255 // maxval) for v in values]
     return width, height, values
+
+
+def pgm_header(data):
+    """(width, height, maxval, offset of the whitespace byte before the pixels) of a P5 or P2 PGM."""
+    if data[:2] not in (b"P5", b"P2"):
+        raise ValueError("not a PGM image (P5 or P2); convert it with e.g. `convert map.png map.pgm`")
+    tokens, pos = _header_tokens(data, 3)
+    width, height, maxval = tokens
+    if width <= 0 or height <= 0 or not 0 < maxval < 65536:
+        raise ValueError("bad PGM header {} x {}, maxval {}".format(width, height, maxval))
+    return width, height, maxval, pos
 
 
 def _header_tokens(data, wanted):

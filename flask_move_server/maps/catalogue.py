@@ -1,0 +1,294 @@
+"""The maps folder: every saved map, its facts, and renaming or deleting one with its waypoints.
+
+A map is ``NAME.yaml`` + its image (``NAME.pgm`` as map_saver writes it, so maps
+made elsewhere can be dropped in) and, beside them, its waypoints
+``NAME.waypoints.yaml`` in the waypoints file format (kept by
+:class:`~flask_move_server.waypoint_store.WaypointStore`). A map exists when its
+YAML does: :func:`mapfile.save` renames the YAML into place last.
+
+Names follow the waypoint naming rule, and since a name becomes a file name,
+also never start with '.' (hidden files, the temporaries of a save) nor end in
+'.waypoints' (it would be another map's waypoints file). Leftovers of a killed
+save (``.~NAME.*.part``) are never listed; :meth:`MapCatalogue.remove_leftovers`
+deletes them. Mutations take one lock, so two requests cannot interleave a
+rename and a save. Pure: no rospy, no Flask.
+"""
+
+import datetime
+import os
+import threading
+from dataclasses import dataclass
+
+import yaml
+
+from flask_move_server import waypoints_file
+from flask_move_server.errors import BadMapName, BadWaypoint, ConfigError, MapExists, MapFileError, MapInUse, UnknownMap
+from flask_move_server.maps import mapfile
+from flask_move_server.sim import occupancy
+from flask_move_server.waypoints import NAME_RULE, check_name, suggest
+from flask_move_server.waypoints_format import entries_of
+
+WAYPOINTS_SUFFIX = ".waypoints.yaml"
+MAP_NAME_RULE = NAME_RULE + ", not starting with '.' and not ending in '.waypoints'"
+
+
+def check_map_name(name):
+    """Return ``name`` if it can name a map (and its files), else raise BadMapName."""
+    try:
+        check_name(name)
+    except BadWaypoint:
+        raise BadMapName("Invalid map name {!r}: use {}.".format(name, MAP_NAME_RULE)) from None
+    if name.startswith(".") or name.lower().endswith(".waypoints"):
+        raise BadMapName("Invalid map name {!r}: use {}.".format(name, MAP_NAME_RULE))
+    return name
+
+
+@dataclass(frozen=True)
+class MapInfo:
+    """What the maps list says of one map; ``problem`` names what is wrong with a broken one."""
+
+    name: str
+    width: object
+    height: object
+    resolution: object
+    origin: object
+    modified: str
+    waypoints: int
+    problem: object = None
+
+    def as_dict(self):
+        data = {"name": self.name, "width": self.width, "height": self.height, "resolution": self.resolution,
+                "origin": self.origin, "modified": self.modified, "waypoints": self.waypoints}
+        if self.problem:
+            data["problem"] = self.problem
+        return data
+
+
+class MapCatalogue:
+    """The maps of one folder: list, describe, save, load, rename, delete."""
+
+    def __init__(self, folder):
+        self.folder = os.path.abspath(folder)
+        self._lock = threading.Lock()
+
+    # paths ----------------------------------------------------------------
+
+    def yaml_path(self, name):
+        """The YAML of map ``name`` (validated; it may not exist)."""
+        return os.path.join(self.folder, check_map_name(name) + ".yaml")
+
+    def waypoints_path(self, name):
+        """The waypoints file of map ``name``, for a WaypointStore (it may not exist yet)."""
+        return os.path.join(self.folder, check_map_name(name) + WAYPOINTS_SUFFIX)
+
+    def exists(self, name):
+        return os.path.isfile(self.yaml_path(name))
+
+    # reading --------------------------------------------------------------
+
+    def names(self):
+        """The saved maps' names, sorted; files that cannot be a map name are skipped."""
+        try:
+            files = os.listdir(self.folder)
+        except FileNotFoundError:
+            return []
+        except OSError as exc:
+            raise MapFileError("Cannot list the maps folder {}: {}.".format(self.folder, exc.strerror)) from exc
+        names = []
+        for file in files:
+            if file.endswith(".yaml") and not file.endswith(WAYPOINTS_SUFFIX):
+                try:
+                    names.append(check_map_name(file[:-len(".yaml")]))
+                except BadMapName:
+                    continue
+        return sorted(names)
+
+    def list(self):
+        """A :class:`MapInfo` per saved map, sorted by name (a map deleted meanwhile is left out)."""
+        infos = []
+        for name in self.names():
+            try:
+                infos.append(self.describe(name))
+            except UnknownMap:
+                continue
+        return infos
+
+    def describe(self, name):
+        """The :class:`MapInfo` of one map; UnknownMap (with close names) when it is not saved."""
+        path = self._existing(name)
+        try:
+            modified = _iso_time(os.stat(path).st_mtime)
+        except FileNotFoundError:
+            raise self._unknown(name) from None
+        waypoints = self._count_waypoints(name)
+        try:
+            meta = occupancy.read_meta(path, rotated_ok=True)
+            width, height = mapfile.image_size(path, meta["image"])
+        except (ConfigError, OSError, ValueError) as exc:
+            return MapInfo(name, None, None, None, None, modified, waypoints, problem=str(exc))
+        return MapInfo(name, width, height, meta["resolution"], list(meta["origin"]), modified, waypoints)
+
+    def version(self, name):
+        """A version of the stored map for an ETag: its YAML's and PGM's change times and sizes."""
+        parts = [name]
+        for path in (self._existing(name), os.path.join(self.folder, name + ".pgm")):
+            try:
+                info = os.stat(path)
+                parts.append("{:x}-{:x}".format(info.st_mtime_ns, info.st_size))
+            except FileNotFoundError:
+                parts.append("none")
+        return "-".join(parts)
+
+    def load(self, name):
+        """The map's :class:`~flask_move_server.maps.mapfile.Grid`; MapFileError if its files are broken."""
+        path = self._existing(name)
+        try:
+            return mapfile.load(path)
+        except ConfigError as exc:
+            raise MapFileError("The map {!r} cannot be read: {}".format(name, exc)) from exc
+
+    def _count_waypoints(self, name):
+        try:
+            with open(self.waypoints_path(name), encoding="utf-8") as f:
+                return len(entries_of(f.read(), source=name) or {})
+        except (OSError, ValueError):
+            return 0
+
+    def _existing(self, name):
+        path = self.yaml_path(name)
+        if not os.path.isfile(path):
+            raise self._unknown(name)
+        return path
+
+    def _unknown(self, name):
+        close = suggest(name, self.names())
+        hint = " Did you mean: {}?".format(", ".join(repr(s) for s in close)) if close else \
+            " GET /maps lists the saved maps."
+        return UnknownMap("No map named {!r}.{}".format(name, hint))
+
+    # changing -------------------------------------------------------------
+
+    def save(self, name, grid, overwrite=False):
+        """Save ``grid`` as map ``name`` (atomically; MapExists unless ``overwrite``); its MapInfo."""
+        check_map_name(name)
+        with self._lock:
+            self._make_folder()
+            mapfile.save(self.folder, name, grid, overwrite=overwrite)
+        return self.describe(name)
+
+    def rename(self, old, new, active=None):
+        """Rename map ``old`` to ``new`` with its image and waypoints; never the ``active`` map."""
+        check_map_name(new)
+        with self._lock:
+            old_yaml = self._existing(old)
+            self._refuse_active(old, active, "renamed")
+            if self.exists(new):
+                raise MapExists("A map named {!r} already exists; delete it first or pick another name.".format(new))
+            try:
+                self._move(old, new, old_yaml)
+            except ConfigError as exc:
+                raise MapFileError("The map {!r} cannot be renamed: {}".format(old, exc)) from exc
+            except OSError as exc:
+                raise MapFileError("Could not rename the map {!r} to {!r}: {}.".format(
+                    old, new, exc.strerror or exc)) from exc
+        return self.describe(new)
+
+    def _move(self, old, new, old_yaml):
+        """Link every file under the new name, put the new YAML in place, then drop the old names.
+
+        Killed half-way, the folder holds the map twice (or once), never zero times.
+        """
+        meta = _raw_meta(old_yaml)
+        own_image = meta.get("image") == old + ".pgm"
+        links = [(self.waypoints_path(old) + ext, self.waypoints_path(new) + ext) for ext in ("", ".bak")]
+        if own_image:
+            links.append((os.path.join(self.folder, old + ".pgm"), os.path.join(self.folder, new + ".pgm")))
+            meta["image"] = new + ".pgm"
+        for source, target in links:
+            if os.path.exists(source):
+                _replace_link(source, target)
+        extra = {k: v for k, v in meta.items() if k not in _MAP_SAVER_KEYS}
+        text = mapfile.yaml_text(meta["image"], float(meta["resolution"]), meta["origin"], extra)
+        part = mapfile.write_part(self.folder, new, ".yaml", text.encode())
+        os.rename(part, self.yaml_path(new))
+        for path in [old_yaml] + [source for source, _ in links] + self._waypoints_leftovers(old):
+            _remove_if_there(path)
+        mapfile.fsync_folder(self.folder)
+
+    def delete(self, name, active=None):
+        """Delete map ``name`` (YAML first, so it is gone at once), ``NAME.pgm`` and its waypoints; not the active one.
+
+        A broken map can be deleted too; an image the YAML names under another name is left alone.
+        """
+        with self._lock:
+            path = self._existing(name)
+            self._refuse_active(name, active, "deleted")
+            waypoints = self.waypoints_path(name)
+            try:
+                os.unlink(path)
+                for other in [os.path.join(self.folder, name + ".pgm"), waypoints, waypoints + ".bak"] + \
+                        self._waypoints_leftovers(name):
+                    _remove_if_there(other)
+            except OSError as exc:
+                raise MapFileError("Could not delete the map {!r}: {}.".format(name, exc.strerror)) from exc
+
+    def _waypoints_leftovers(self, name):
+        """The waypoints file's lock and a killed save's temporaries: dropped, never moved."""
+        path = self.waypoints_path(name)
+        return [path + ".lock"] + waypoints_file.leftovers(path)
+
+    def _refuse_active(self, name, active, done):
+        if active is not None and name == active:
+            raise MapInUse("The map {!r} is in use; switch to another map (or idle) before it can be {}.".format(
+                name, done))
+
+    def _make_folder(self):
+        try:
+            os.makedirs(self.folder, exist_ok=True)
+        except OSError as exc:
+            raise MapFileError("Cannot create the maps folder {}: {}.".format(self.folder, exc.strerror)) from exc
+
+    # leftovers ------------------------------------------------------------
+
+    def leftovers(self):
+        """Temporary files a killed save or rename left in the folder."""
+        try:
+            files = os.listdir(self.folder)
+        except OSError:
+            return []
+        return sorted(os.path.join(self.folder, f) for f in files
+                      if f.startswith(mapfile.LEFTOVER_PREFIX) and f.endswith(mapfile.LEFTOVER_SUFFIX))
+
+    def remove_leftovers(self):
+        """Delete the leftovers (call when no save runs, e.g. at start-up); the paths removed."""
+        with self._lock:
+            removed = self.leftovers()
+            for path in removed:
+                _remove_if_there(path)
+        return removed
+
+
+_MAP_SAVER_KEYS = ("image", "resolution", "origin", "negate", "occupied_thresh", "free_thresh")
+
+
+def _raw_meta(yaml_path):
+    """The YAML's mapping as written (extra keys kept), checked by map_server's rules first."""
+    occupancy.read_meta(yaml_path, rotated_ok=True)
+    with open(yaml_path, encoding="utf-8") as f:
+        return yaml.safe_load(f)
+
+
+def _replace_link(source, target):
+    _remove_if_there(target)
+    os.link(source, target)
+
+
+def _remove_if_there(path):
+    try:
+        os.unlink(path)
+    except FileNotFoundError:
+        pass
+
+
+def _iso_time(timestamp):
+    return datetime.datetime.fromtimestamp(timestamp, datetime.timezone.utc).isoformat(timespec="seconds")

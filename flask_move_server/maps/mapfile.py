@@ -1,0 +1,209 @@
+"""A map on disk as map_saver writes it: ``NAME.pgm`` (binary P5) and ``NAME.yaml``.
+
+Writing follows map_server's ``map_saver.cpp`` (noetic): every cell of the
+``nav_msgs/OccupancyGrid`` becomes one pixel, top image row = top of the map;
+a cell 0..``free`` (25) is 254, a cell >= ``occupied`` (65) is 0, anything else
+(unknown -1, the doubtful middle) is 205. The YAML is map_saver's text, with its
+fixed ``negate: 0``, ``occupied_thresh: 0.65``, ``free_thresh: 0.196``, so a map
+saved here and one saved by ``rosrun map_server map_saver`` are interchangeable.
+
+Saving is atomic for the pair: both files are written under temporary names in
+the folder (``.~NAME.*.part``), fsynced, then renamed into place, the PGM first
+and the YAML last, so a save killed half-way leaves no YAML and no listed map.
+
+Reading uses map_server's rules from :mod:`flask_move_server.sim.occupancy`
+(one place), with a C-speed path for the 8-bit P5 images map_saver writes.
+Cells are ``bytes`` of signed int8, bottom row first, as OccupancyGrid's payload.
+Pure: no rospy.
+"""
+
+import array
+import json
+import math
+import os
+import tempfile
+from dataclasses import dataclass
+
+import yaml
+
+from flask_move_server.errors import ConfigError, MapExists, MapFileError
+from flask_move_server.sim import occupancy
+
+FREE_PIXEL, OCCUPIED_PIXEL, UNKNOWN_PIXEL = 254, 0, 205
+MAP_SAVER_FREE, MAP_SAVER_OCCUPIED = 25, 65  # map_saver's --free / --occ defaults
+LEFTOVER_PREFIX, LEFTOVER_SUFFIX = ".~", ".part"
+
+
+@dataclass
+class Grid:
+    """An occupancy grid: ``cells`` int8 bytes (-1 unknown, 0 free .. 100 occupied), bottom row first."""
+
+    width: int
+    height: int
+    resolution: float
+    origin_x: float
+    origin_y: float
+    cells: bytes
+    origin_yaw: float = 0.0
+
+    def __post_init__(self):
+        if not (self.resolution > 0 and math.isfinite(self.resolution)):
+            raise ValueError("a grid's resolution must be a positive number of metres, got {!r}".format(
+                self.resolution))
+        self.cells = cells_as_bytes(self.cells)
+        if len(self.cells) != self.width * self.height:
+            raise ValueError("a {} x {} grid needs {} cells, got {}".format(
+                self.width, self.height, self.width * self.height, len(self.cells)))
+
+    def value(self, col, row):
+        """The cell value (-128..127) at a column and row (row 0 at the bottom)."""
+        byte = self.cells[row * self.width + col]
+        return byte - 256 if byte > 127 else byte
+
+
+def cells_as_bytes(cells):
+    """OccupancyGrid cells as int8 ``bytes``: raw bytes pass through, ints -128..127 are packed."""
+    if isinstance(cells, bytes):
+        return cells
+    if isinstance(cells, (bytearray, memoryview)):
+        return bytes(cells)
+    try:
+        return array.array("b", cells).tobytes()
+    except OverflowError:
+        raise ValueError("occupancy cells are int8 values, -128..127 (-1 unknown, 0..100)") from None
+
+
+def pixel_table(free=MAP_SAVER_FREE, occupied=MAP_SAVER_OCCUPIED):
+    """For each int8 cell byte 0..255, the grey pixel map_saver writes (a ``bytes.translate`` table)."""
+    def grey(byte):
+        value = byte - 256 if byte > 127 else byte
+        if 0 <= value <= free:
+            return FREE_PIXEL
+        return OCCUPIED_PIXEL if value >= occupied else UNKNOWN_PIXEL
+    return bytes(grey(b) for b in range(256))
+
+
+def flipped_rows(data, width, height):
+    """The rows of ``data`` in the other order (grid bottom-first ↔ image top-first), C-speed slices."""
+    return b"".join(data[row * width:(row + 1) * width] for row in range(height - 1, -1, -1))
+
+
+def pgm_bytes(grid, free=MAP_SAVER_FREE, occupied=MAP_SAVER_OCCUPIED):
+    """The P5 PGM map_saver writes for ``grid`` (header comment included)."""
+    header = "P5\n# CREATOR: map_saver.cpp {:.3f} m/pix\n{} {}\n255\n".format(
+        grid.resolution, grid.width, grid.height).encode("ascii")
+    pixels = grid.cells.translate(pixel_table(free, occupied))
+    return header + flipped_rows(pixels, grid.width, grid.height)
+
+
+def yaml_text(image, resolution, origin, extra=None):
+    """map_saver's YAML text (``%f`` numbers, its fixed thresholds); ``extra`` keys appended."""
+    text = "image: {}\nresolution: {:f}\norigin: [{:f}, {:f}, {:f}]\nnegate: 0\n" \
+           "occupied_thresh: 0.65\nfree_thresh: 0.196\n\n".format(
+               _yaml_scalar(image), resolution, origin[0], origin[1], origin[2])
+    if extra:
+        text += yaml.safe_dump(dict(extra), default_flow_style=False, sort_keys=False)
+    return text
+
+
+def _yaml_scalar(text):
+    """``text`` plain as map_saver prints it, quoted only when YAML would read it as something else."""
+    try:
+        if yaml.safe_load("k: " + text) == {"k": text}:
+            return text
+    except yaml.YAMLError:
+        pass
+    return json.dumps(text)
+
+
+def save(folder, name, grid, overwrite=False):
+    """Write ``NAME.pgm`` + ``NAME.yaml`` into ``folder`` atomically; MapExists if saved and not ``overwrite``."""
+    yaml_path = os.path.join(folder, name + ".yaml")
+    pgm_path = os.path.join(folder, name + ".pgm")
+    if not overwrite and os.path.exists(yaml_path):
+        raise MapExists("A map named {!r} is already saved; ask to overwrite it, or pick another name.".format(name))
+    origin = (grid.origin_x, grid.origin_y, grid.origin_yaw)
+    parts = []
+    try:
+        parts.append(write_part(folder, name, ".pgm", pgm_bytes(grid)))
+        parts.append(write_part(folder, name, ".yaml", yaml_text(name + ".pgm", grid.resolution, origin).encode()))
+        if overwrite and os.path.exists(yaml_path):
+            os.unlink(yaml_path)  # never an old YAML describing the new image, even for a moment
+        os.rename(parts[0], pgm_path)
+        os.rename(parts[1], yaml_path)
+        fsync_folder(folder)
+    except OSError as exc:
+        for part in parts:
+            _remove_quietly(part)
+        raise MapFileError("Could not save the map {!r} in {}: {}.".format(
+            name, folder, exc.strerror or exc)) from exc
+    return yaml_path
+
+
+def write_part(folder, name, suffix, data):
+    """``data`` in a new temporary file of ``folder``, flushed to the disk; returns its path."""
+    fd, path = tempfile.mkstemp(prefix="{}{}.".format(LEFTOVER_PREFIX, name),
+                                suffix=suffix + LEFTOVER_SUFFIX, dir=folder)
+    try:
+        with os.fdopen(fd, "wb") as f:
+            f.write(data)
+            f.flush()
+            os.fsync(f.fileno())
+    except BaseException:
+        _remove_quietly(path)
+        raise
+    return path
+
+
+def fsync_folder(folder):
+    """Make the renames in ``folder`` durable (a power cut after the answer keeps the map)."""
+    fd = os.open(folder, os.O_RDONLY)
+    try:
+        os.fsync(fd)
+    finally:
+        os.close(fd)
+
+
+def _remove_quietly(path):
+    try:
+        os.unlink(path)
+    except OSError:
+        pass
+
+
+def load(yaml_path):
+    """Read a map_server map (any image map_server's rules read) into a :class:`Grid`."""
+    meta = occupancy.read_meta(yaml_path, rotated_ok=True)
+    image_path = os.path.join(os.path.dirname(os.path.abspath(yaml_path)), meta["image"])
+    try:
+        with open(image_path, "rb") as f:
+            data = f.read()
+        width, height, cells = _cells_of_image(data, meta)
+    except OSError as exc:
+        raise ConfigError(yaml_path, "image", "cannot read {}: {}".format(image_path, exc.strerror))
+    except ValueError as exc:
+        raise ConfigError(yaml_path, "image", "{}: {}".format(image_path, exc))
+    x, y, yaw = meta["origin"]
+    return Grid(width, height, meta["resolution"], x, y, cells, origin_yaw=yaw)
+
+
+def _cells_of_image(data, meta):
+    """(width, height, int8 cells bottom row first); bytes.translate for 8-bit P5, else sim's reader."""
+    width, height, maxval, pos = occupancy.pgm_header(data)
+    pixels = data[pos + 1:pos + 1 + width * height]
+    if data[:2] == b"P5" and maxval == 255 and len(pixels) == width * height:
+        table = bytes(v & 0xFF for v in occupancy.cell_table(meta))
+        return width, height, flipped_rows(pixels.translate(table), width, height)
+    width, height, values = occupancy.parse_pgm(data)
+    cells = occupancy.cells_from_pixels(width, height, values, meta)
+    return width, height, cells_as_bytes(cells)
+
+
+def image_size(yaml_path, image):
+    """(width, height) from the header of the map's PGM, without reading its pixels."""
+    path = os.path.join(os.path.dirname(os.path.abspath(yaml_path)), image)
+    with open(path, "rb") as f:
+        head = f.read(4096)
+    width, height, _, _ = occupancy.pgm_header(head)
+    return width, height
+
