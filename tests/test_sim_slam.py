@@ -136,6 +136,10 @@ def test_a_goal_in_unknown_space_is_planned_through_the_unknown(truth):
     assert slam.value_at(6.0, 4.5) == -1
     path = planner.plan((0.0, 0.0), (6.0, 4.5))     # into the bedroom nobody has seen
     assert path[0] == (0.0, 0.0) and path[-1] == (6.0, 4.5)
+    on_the_way = [(a[0] + (b[0] - a[0]) * k / 20, a[1] + (b[1] - a[1]) * k / 20)
+                  for a, b in zip(path, path[1:]) for k in range(20)]
+    assert any(slam.value_at(x, y) == -1 for x, y in on_the_way[:-20])   # not only the goal is unknown
+    assert not planner.path_blocked(path)
 
 
 def test_a_wall_found_later_blocks_the_straight_way():
@@ -147,6 +151,7 @@ def test_a_wall_found_later_blocks_the_straight_way():
     after = planner.plan((1.0, 1.0), (4.0, 1.0))
     assert path_length(after) > 4.0                                # round the wall, through the gap
     assert all(p[1] > 1.8 for p in after[1:-1])
+    assert planner.path_blocked(before) and not planner.path_blocked(after)
     assert planner.rebuilds == 2
     planner.plan((1.0, 1.0), (4.0, 1.5))
     assert planner.rebuilds == 2                                   # map unchanged: costmap kept

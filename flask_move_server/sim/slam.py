@@ -195,3 +195,19 @@ class GrowingMapPlanner:
     def plan(self, start, goal):
         """A path from ``start`` to ``goal`` through free and unknown cells, around the obstacles seen so far."""
         return self._current().plan(start, goal)
+
+    def path_blocked(self, points):
+        """True when an obstacle seen since ``points`` was planned lies in the robot's way along it.
+
+        The move_base stand-in can ask this when the map's version changes, and replan (move_base
+        replans on its growing costmap too). The first point (where the robot stood) is not checked:
+        a robot close to a wall may stand in an inflated cell.
+        """
+        costmap = self._current().costmap
+        step = costmap.resolution / 2.0
+        for (ax, ay), (bx, by) in zip(points, points[1:]):
+            n = max(1, int(math.ceil(math.hypot(bx - ax, by - ay) / step)))
+            for k in range(1, n + 1):
+                if costmap.lethal_at(ax + (bx - ax) * k / n, ay + (by - ay) * k / n):
+                    return True
+        return False
