@@ -9,6 +9,9 @@ import pytest
 from flask_move_server.errors import PlanningFailed
 from flask_move_server.geometry import Pose2D
 from flask_move_server.sim import occupancy
+from flask_move_server.sim.body import RobotBody
+from flask_move_server.sim.costmap import Costmap
+from flask_move_server.sim.follower import DONE, FollowerLimits, PathFollower
 from flask_move_server.sim.laser import Laser
 from flask_move_server.sim.planner import path_length
 from flask_move_server.sim.slam import GrowingMapPlanner, SlamMap
@@ -163,3 +166,34 @@ def test_a_goal_on_a_wall_seen_is_refused():
     with pytest.raises(PlanningFailed) as info:
         GrowingMapPlanner(slam, 0.15).plan((1.0, 1.0), (2.55, 1.0))
     assert info.value.reason == "occupied"
+
+
+def drive_exploring(truth, goal, seconds=120.0, dt=0.1, scan_every=10):
+    """Drive from the dock to ``goal`` knowing nothing, mapping as it goes (a scan per simulated second,
+    to keep the test fast) and replanning when a wall found since blocks the path, as the move_base
+    stand-in will in mapping mode; (final pose, map, replans)."""
+    body = RobotBody(Costmap(truth, 0.15), track=0.2)
+    slam = SlamMap.around(Laser(truth), margin=1.0)
+    planner = GrowingMapPlanner(slam, 0.15, 0.1)
+    slam.integrate(body.pose)
+    path = planner.plan((0.0, 0.0), goal)
+    follower = PathFollower(path, 0.0, FollowerLimits())
+    replans = 0
+    for step in range(int(seconds / dt)):
+        pose = body.pose
+        if step % scan_every == 0 and slam.integrate(pose) and planner.path_blocked([(pose.x, pose.y)] + path[1:]):
+            path = planner.plan((pose.x, pose.y), goal)
+            follower = PathFollower(path, 0.0, FollowerLimits())
+            replans += 1
+        if follower.state == DONE and follower.reached(pose):
+            return pose, slam, replans
+        v, w = follower.command(pose)
+        body.step(v - w * 0.1, v + w * 0.1, dt)
+    return body.pose, slam, replans
+
+
+def test_a_goal_into_unknown_space_is_reached_by_replanning_around_the_walls_found(truth):
+    pose, slam, replans = drive_exploring(truth, (6.2, 4.5))     # the bedroom, behind two walls from the dock
+    assert pose.distance_to(Pose2D(6.2, 4.5, 0.0)) < 0.15
+    assert replans >= 1
+    assert slam.value_at(5.45, 2.5) == 0                  # through the bedroom door it found
