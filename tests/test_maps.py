@@ -111,18 +111,6 @@ def test_a_write_that_raises_leaves_nothing_under_the_final_names(maps, monkeypa
     assert sorted(os.listdir(maps.folder)) == []
 
 
-@pytest.mark.skipif(os.geteuid() == 0, reason="root writes into read-only folders")
-def test_a_read_only_folder_refuses_the_save_cleanly(maps):
-    os.makedirs(maps.folder)
-    os.chmod(maps.folder, 0o555)
-    try:
-        with pytest.raises(MapFileError, match="flat"):
-            maps.save("flat", small_grid())
-        assert maps.list() == []
-    finally:
-        os.chmod(maps.folder, 0o755)
-
-
 def test_a_folder_that_refuses_new_files_refuses_the_save_cleanly(maps, monkeypatch):
     import tempfile
 
