@@ -99,6 +99,18 @@ def test_goto_without_move_base_is_503_naming_the_action(client, robot):
     assert client.get("/health").get_json() == {"status": "ok", "ros": "connected", "move_base": "unavailable"}
 
 
+def test_goto_after_move_base_went_away_is_503_again(client, ready_robot, move_base):
+    """A move_base found ready is remembered only while its connections stay: when it goes, goals are refused."""
+    assert client.post("/goto", json={"x": 1.0, "y": 0.0}).status_code == 202
+    assert client.post("/goto", json={"x": 2.0, "y": 0.0}).status_code == 202
+    move_base.shutdown()
+    wait_for(lambda: client.post("/goto", json={"x": 3.0, "y": 0.0}).status_code == 503, timeout=15,
+             message="/goto to answer 503 once move_base is gone")
+    r = client.post("/goto", json={"x": 4.0, "y": 0.0})
+    assert r.status_code == 503 and r.get_json()["error"] == "move_base_unavailable"
+    assert client.get("/health").get_json()["move_base"] == "unavailable"
+
+
 def test_topic_interface_publishes_move_base_simple_goal(ros_node, robot_config, tmp_path):
     from geometry_msgs.msg import PoseStamped
 

@@ -23,6 +23,7 @@ from move_base_msgs.msg import MoveBaseAction, MoveBaseGoal
 from flask_move_server.errors import NavigationUnavailable, RosUnavailable
 from flask_move_server.ros.action_status import read_status_lightly
 from flask_move_server.ros.convert import pose_from_msg, pose_stamped
+from flask_move_server.ros.readiness import ServerReadiness
 
 log = logging.getLogger(__name__)
 
@@ -62,6 +63,7 @@ class Navigator:
         self._message = None
         self._cancel_sent = None
         self._client = None
+        self._readiness = None
         self._goal_pub = None
         self._cancel_pub = None
         self._released = False
@@ -72,6 +74,7 @@ class Navigator:
         if self._config.goal_interface == "action":
             client = actionlib.SimpleActionClient(self._config.action, MoveBaseAction)
             read_status_lightly(client.action_client)  # move_base's status array: only our goal's entry
+            self._readiness = ServerReadiness(client.action_client)
             self._client = client
         else:
             self._goal_pub = rospy.Publisher(self._config.simple_goal_topic, PoseStamped, queue_size=1, latch=False)
@@ -176,7 +179,7 @@ class Navigator:
             return False
         if self._client is None:
             return self._goal_pub is not None
-        return self._client.wait_for_server(rospy.Duration(0.001))
+        return self._readiness.ready(0.001)
 
     def close(self):
         """Release the action client's or the goal topic's connections. Idempotent."""
@@ -200,7 +203,7 @@ class Navigator:
             )
         if self._client is None and self._goal_pub is None:
             raise RosUnavailable("The ROS node is still starting (or stopping); try again in a moment.")
-        if self._client is not None and not self._client.wait_for_server(rospy.Duration(self._config.server_wait)):
+        if self._client is not None and not self._readiness.ready(self._config.server_wait):
             action = rospy.resolve_name(self._config.action)
             raise NavigationUnavailable(
                 "move_base does not answer on the action '{}': is the navigation stack "
