@@ -130,7 +130,7 @@ def atomic_write(path, text, backup_text=None):
         with contextlib.suppress(OSError):
             os.unlink(tmp)
         raise
-    _fsync_dir(directory)
+    fsync_dir(directory)
 
 
 def _write_backup(path, text):
@@ -167,7 +167,8 @@ def remove_leftovers(path, timeout):
         log.warning("left temporary files of %s in place: %s", path, exc)
 
 
-def _fsync_dir(directory):
+def fsync_dir(directory):
+    """Make the renames in ``directory`` durable: a power cut after the answer keeps them."""
     fd = os.open(directory, os.O_RDONLY)
     try:
         os.fsync(fd)

@@ -213,7 +213,7 @@ class MapCatalogue:
         os.rename(part, self.yaml_path(new))
         for path in [old_yaml] + [source for source, _ in links] + self._waypoints_leftovers(old):
             _remove_if_there(path)
-        mapfile.fsync_folder(self.folder)
+        waypoints_file.fsync_dir(self.folder)
 
     def delete(self, name, active=None):
         """Delete map ``name`` (YAML first, so it is gone at once), ``NAME.pgm`` and its waypoints; not the active one.

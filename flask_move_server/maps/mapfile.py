@@ -28,6 +28,7 @@ import yaml
 
 from flask_move_server.errors import ConfigError, MapExists, MapFileError
 from flask_move_server.sim import occupancy
+from flask_move_server.waypoints_file import fsync_dir
 
 FREE_PIXEL, OCCUPIED_PIXEL, UNKNOWN_PIXEL = 254, 0, 205
 MAP_SAVER_FREE, MAP_SAVER_OCCUPIED = 25, 65  # map_saver's --free / --occ defaults
@@ -131,7 +132,7 @@ def save(folder, name, grid, overwrite=False):
             os.unlink(yaml_path)  # never an old YAML describing the new image, even for a moment
         os.rename(parts[0], pgm_path)
         os.rename(parts[1], yaml_path)
-        fsync_folder(folder)
+        fsync_dir(folder)
     except OSError as exc:
         for part in parts:
             _remove_quietly(part)
@@ -153,15 +154,6 @@ def write_part(folder, name, suffix, data):
         _remove_quietly(path)
         raise
     return path
-
-
-def fsync_folder(folder):
-    """Make the renames in ``folder`` durable (a power cut after the answer keeps the map)."""
-    fd = os.open(folder, os.O_RDONLY)
-    try:
-        os.fsync(fd)
-    finally:
-        os.close(fd)
 
 
 def _remove_quietly(path):
