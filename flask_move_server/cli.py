@@ -104,14 +104,17 @@ class Server:
         self._stack = contextlib.ExitStack()
 
     def start(self):
+        from flask_move_server.events import EventBus
         from flask_move_server.http_server import HttpServer
         from flask_move_server.waypoint_store import WaypointStore
         from flask_move_server.web import create_app
 
         stack = self._stack
         store = WaypointStore(self.config.waypoints.file, self.config.waypoints.lock_timeout)
+        self.events = EventBus()
+        stack.callback(self.events.close)  # closed last of all: streams end after the robot stopped
         robot = self._build_robot(stack)
-        app = create_app(self.config, robot, store, token=self.config.resolved_token())
+        app = create_app(self.config, robot, store, token=self.config.resolved_token(), events=self.events)
         self.http = HttpServer(app, self.config.server)
         stack.callback(self.http.close)
         stack.callback(robot.stop)

@@ -253,6 +253,37 @@ class SimConfig:
     scan_topic: str = "scan"
 
 
+def _launch_command(value):
+    parts = value.split()
+    if len(parts) == 2 and parts[1].endswith(".launch"):
+        return None
+    return "must be 'PACKAGE FILE.launch', like 'flask_move_server mapping.launch'"
+
+
+@dataclass
+class MapsConfig:
+    """Where maps live and how they are saved and drawn (docs/api.md, "Maps and modes")."""
+
+    folder: Optional[str] = path_field(default=None)  # None: maps/ beside waypoints.file
+    state_file: Optional[str] = path_field(default=None)  # None: mode.json beside waypoints.file
+    topic: str = "map"
+    save_timeout: float = checked(_positive, default=10.0)
+    image_margin: float = checked(_non_negative, default=1.0)
+
+
+@dataclass
+class ModesConfig:
+    """Who runs the navigation stack for the modes idle, mapping and navigation."""
+
+    stack: Literal["auto", "roslaunch", "sim", "none"] = "auto"
+    mapping_launch: str = checked(_launch_command, default="flask_move_server mapping.launch")
+    navigation_launch: str = checked(_launch_command, default="flask_move_server navigation.launch")
+    start_timeout: float = checked(_positive, default=60.0)
+    stop_timeout: float = checked(_positive, default=10.0)
+    restarts: int = checked(_non_negative, default=3)
+    initial_pose_topic: str = "initialpose"
+
+
 @dataclass
 class Config:
     """The whole server configuration, one section per concern."""
@@ -265,11 +296,31 @@ class Config:
     drive: DriveConfig = field(default_factory=DriveConfig)
     mdns: MdnsConfig = field(default_factory=MdnsConfig)
     sim: SimConfig = field(default_factory=SimConfig)
+    maps: MapsConfig = field(default_factory=MapsConfig)
+    modes: ModesConfig = field(default_factory=ModesConfig)
     source: str = internal_field(default="(defaults)")
 
     def resolved_token(self):
         """The bearer token in force, or None (see access.resolved_token)."""
         return access.resolved_token(self)
+
+    def state_folder(self):
+        """The folder of the waypoints file: maps/ and mode.json live there unless configured."""
+        return os.path.dirname(os.path.abspath(self.waypoints.file))
+
+    def maps_folder(self):
+        """Where NAME.yaml + NAME.pgm + NAME.waypoints.yaml live."""
+        return self.maps.folder or os.path.join(self.state_folder(), "maps")
+
+    def mode_state_file(self):
+        """Where the mode and map to come back to after a restart are kept."""
+        return self.maps.state_file or os.path.join(self.state_folder(), "mode.json")
+
+    def stack_kind(self):
+        """Who runs the navigation stack: ``sim`` with --sim, ``roslaunch`` or ``none``."""
+        if self.modes.stack == "auto":
+            return "sim" if self.sim.enabled else "roslaunch"
+        return self.modes.stack
 
     def serves_only_loopback(self):
         """True when the server binds a loopback address only."""

@@ -207,3 +207,33 @@ class MapFileError(MoveServerError, OSError):
     """A map's files cannot be read or written (folder read-only or full, a broken file)."""
 
     code = "map_file"
+
+
+class ModeSwitching(MoveServerError, RuntimeError):
+    """A mode switch is already under way; one runs at a time."""
+
+    code = "mode_switching"
+
+
+class ModesOff(MoveServerError, RuntimeError):
+    """This server does not own the navigation stack (``modes.stack: none``), so it cannot switch modes."""
+
+    code = "modes_off"
+
+
+class WrongMode(MoveServerError, RuntimeError):
+    """The request needs another mode (saving a map needs mapping, relocalizing needs a map)."""
+
+    code = "wrong_mode"
+
+
+class StackFailed(MoveServerError, RuntimeError):
+    """The navigation stack of a mode did not come up, or died (the message says which part and why)."""
+
+    code = "stack_failed"
+
+
+class NoMap(MoveServerError, LookupError):
+    """No map is published on the map topic (nothing is mapping or serving a map)."""
+
+    code = "no_map"

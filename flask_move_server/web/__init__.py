@@ -6,6 +6,7 @@ module global, so several apps (tests) can live in one process.
 
 from flask import Blueprint, Flask, Response, send_from_directory
 
+from flask_move_server.events import EventBus
 from flask_move_server.web import auth, error_handlers, guard
 from flask_move_server.web.estop import estop
 from flask_move_server.web.openapi import description
@@ -22,15 +23,16 @@ class UntypedResponse(Response):
     default_mimetype = None
 
 
-def create_app(config, robot, store, token=None):
-    """Build the WSGI app serving ``robot`` and the waypoints in ``store``."""
+def create_app(config, robot, store, token=None, events=None):
+    """Build the WSGI app serving ``robot`` and the waypoints in ``store``; ``events``: the server's bus."""
     app = Flask(__name__, static_folder="static", static_url_path="/static")
     app.response_class = UntypedResponse
     app.url_map.converters["waypoint"] = WaypointNameConverter
     app.url_map.merge_slashes = False  # /waypoints//a is the name "/a" (a 400), not an HTML redirect
     app.config["MAX_CONTENT_LENGTH"] = config.server.max_body_bytes
     app.json.sort_keys = False
-    app.extensions["flask_move_server"] = {"config": config, "robot": robot, "store": store}
+    app.extensions["flask_move_server"] = {
+        "config": config, "robot": robot, "store": store, "events": events if events is not None else EventBus()}
     error_handlers.init_app(app)
     guard.init_app(app, config)  # before auth: it protects robots without a token too
     auth.init_app(app, token)
