@@ -91,6 +91,7 @@ class ServerConfig:
     connection_limit: int = checked(_positive, default=100)
     request_timeout: float = checked(_positive, default=10.0)
     channel_timeout: float = checked(_positive, default=30.0)
+    max_streams: int = checked(_positive, default=8)
 
 
 @dataclass
@@ -128,6 +129,7 @@ class NavigationConfig:
     action: str = "move_base"
     simple_goal_topic: str = "move_base_simple/goal"
     amcl_pose_topic: str = "amcl_pose"
+    plan_topic: str = "move_base/NavfnROS/plan"
     server_wait: float = checked(_non_negative, default=0.2)
     max_wait: float = checked(_positive, default=600.0)
     pose_max_age: float = checked(_positive, default=2.0)
