@@ -7,8 +7,10 @@ module global, so several apps (tests) can live in one process.
 from flask import Blueprint, Flask, Response, send_from_directory
 
 from flask_move_server.events import EventBus
+from flask_move_server.modes.manager import ModeManager
 from flask_move_server.web import auth, error_handlers, guard
 from flask_move_server.web.estop import estop
+from flask_move_server.web.modes import modes as modes_routes
 from flask_move_server.web.openapi import description
 from flask_move_server.web.routes import WaypointNameConverter, api
 
@@ -23,8 +25,11 @@ class UntypedResponse(Response):
     default_mimetype = None
 
 
-def create_app(config, robot, store, token=None, events=None):
-    """Build the WSGI app serving ``robot`` and the waypoints in ``store``; ``events``: the server's bus."""
+def create_app(config, robot, store, token=None, events=None, modes=None):
+    """Build the WSGI app serving ``robot`` and the waypoints in ``store``; ``events``: the server's bus.
+
+    ``modes``: the server's ModeManager (None: modes are off, the stack runs outside this server).
+    """
     app = Flask(__name__, static_folder="static", static_url_path="/static")
     app.response_class = UntypedResponse
     app.url_map.converters["waypoint"] = WaypointNameConverter
@@ -33,12 +38,14 @@ def create_app(config, robot, store, token=None, events=None):
     app.json.sort_keys = False
     app.extensions["flask_move_server"] = {
         "config": config, "robot": robot, "store": store, "events": events if events is not None else EventBus()}
+    app.extensions["flask_move_server"]["modes"] = modes if modes is not None else ModeManager(config, None)
     error_handlers.init_app(app)
     guard.init_app(app, config)  # before auth: it protects robots without a token too
     auth.init_app(app, token)
     app.register_blueprint(api)
     app.register_blueprint(estop)
     app.register_blueprint(description)
+    app.register_blueprint(modes_routes)
     if config.server.static:
         _add_page(app)
     return app
