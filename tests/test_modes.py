@@ -10,6 +10,7 @@ from flask_move_server.errors import (
     BadRequest,
     ModesOff,
     ModeSwitching,
+    RosUnavailable,
     StackFailed,
     UnknownMap,
     UnknownWaypoint,
@@ -248,6 +249,27 @@ def test_restore_of_a_map_that_is_gone_is_idle_saying_so(cfg):
     status, starts = _restored(cfg, '{"mode": "navigation", "map": "flat"}')
     assert status["mode"] == "idle" and "'flat'" in status["message"] and "gone" in status["message"]
     assert starts == []
+
+
+def test_restore_of_a_map_name_no_map_can_have_is_idle_saying_so(cfg):
+    status, starts = _restored(cfg, '{"mode": "navigation", "map": "../flat"}')
+    assert status["mode"] == "idle" and "bad name" in status["message"] and starts == []
+
+
+def test_a_pose_that_cannot_be_published_leaves_navigation_running_and_says_so(cfg):
+    save_map(cfg, "flat", "waypoints:\n  dock: [0.5, -1.0, 1.57]\n")
+
+    def ros_down(pose):
+        raise RosUnavailable("ROS is not reachable at http://localhost:11311")
+
+    modes = ModeManager(cfg, StandInStack(), relocalize=ros_down)
+    try:
+        modes.switch("navigation", "flat")
+        assert modes.wait(5)
+        assert modes.status()["message"] == (
+            "running; the robot's pose could not be set (ROS is not reachable at http://localhost:11311): POST /pose")
+    finally:
+        modes.close()
 
 
 def test_without_a_backend_modes_are_off(cfg):

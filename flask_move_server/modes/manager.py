@@ -22,35 +22,15 @@ import logging
 import os
 import threading
 import time
-from dataclasses import dataclass
-from typing import Optional
 
-from flask_move_server.errors import BadRequest, ModesOff, ModeSwitching, StackFailed, UnknownMap, WrongMode
-from flask_move_server.geometry import Pose2D
+from flask_move_server.errors import BadMapName, BadRequest, ModesOff, ModeSwitching, StackFailed, UnknownMap, WrongMode
 from flask_move_server.maps.catalogue import MapCatalogue
 from flask_move_server.modes import relocalizing, state_file
+from flask_move_server.modes.targets import IDLE, OUTSIDE, Target, default_target, unusable_map_target
 
 log = logging.getLogger(__name__)
 
 MODES = state_file.MODES
-OUTSIDE = "the navigation stack is started outside this server (modes.stack: none)"
-IDLE = "idle: no navigation stack runs; start mapping with POST /mode {\"mode\": \"mapping\"} (robotctl map start)"
-
-
-@dataclass(frozen=True)
-class Target:
-    """Where a switch goes: the mode, its map (name and yaml; None: the stack's own), the pose to set."""
-
-    mode: str
-    map: Optional[str] = None
-    yaml: Optional[str] = None
-    pose: Optional[Pose2D] = None
-    note: Optional[str] = None  # the message once running, when the mode has something to say
-
-    def describe(self):
-        if self.mode == "navigation":
-            return "navigation on the map {!r}".format(self.map) if self.map else "navigation on the stack's own map"
-        return self.mode
 
 
 def _now_iso():
@@ -195,36 +175,12 @@ class ModeManager:
             if not isinstance(exc, StackFailed):
                 log.exception("the %s stack could not start", target.mode)
             return str(exc) or type(exc).__name__
-        note = self._after_start(target) if relocalize else self._restarted_note(target)
+        if relocalize:
+            note = relocalizing.after_start(target, self._waypoints_path, self._publish_pose)
+        else:
+            note = relocalizing.restarted_note(target, self._restarts)
         self._running(gen, target, note)
         return None
-
-    def _after_start(self, target):
-        """Set the robot's pose on a named map (the given one, else the map's dock); the running message."""
-        if target.mode != "navigation":
-            return target.note or "running"
-        if target.pose is None and target.map is not None:
-            found = relocalizing.dock_pose(self._waypoints_path(target.map))
-            if found is None:
-                return "running; set the robot's pose (POST /pose) \u2013 the map has no dock waypoint"
-            return self._set_pose_note(found, "the dock waypoint")
-        if target.pose is not None:
-            return self._set_pose_note(target.pose, "the given pose")
-        return "running"
-
-    def _set_pose_note(self, pose, what):
-        try:
-            self._publish_pose(pose)
-        except Exception as exc:  # ROS down, no publisher: the stack runs, say the pose is not set
-            return "running; the robot's pose could not be set ({}): POST /pose".format(exc)
-        return "running; the robot's pose was set to {} ({:.2f}, {:.2f}, {:.2f})".format(
-            what, pose.x, pose.y, pose.yaw)
-
-    def _restarted_note(self, target):
-        note = "running again after {} restart{}".format(self._restarts, "" if self._restarts == 1 else "s")
-        if target.mode == "navigation":
-            note += "; check the robot's pose (POST /pose sets it)"
-        return note
 
     def _running(self, gen, target, message):
         """Remember ``target`` for the next start, then say it runs (a waiter finds it remembered)."""
@@ -328,19 +284,13 @@ class ModeManager:
         remembered, reason = state_file.load(self._config.mode_state_file())
         if remembered is None:
             log.info("no mode to come back to (%s): starting the default", reason)
-            return self._default()
+            return default_target(self._config.stack_kind())
         mode, map_name = remembered
-        if map_name is not None and not self._catalogue.exists(map_name):
-            note = ("idle: the map {!r} used before the restart is gone; GET /maps lists the saved maps, "
-                    "POST /mode {{\"mode\": \"navigation\", \"map\": NAME}} uses one".format(map_name))
-            log.warning("%s", note)
-            return Target("idle", note=note)
-        return self._target_of(mode, map_name, None)
-
-    def _default(self):
-        if self._config.stack_kind() == "sim":
-            return Target("navigation")
-        return Target("idle", note=IDLE)
+        try:
+            return self._target_of(mode, map_name, None)
+        except (UnknownMap, BadMapName) as exc:
+            log.warning("cannot come back to the map %r: %s", map_name, exc)
+            return unusable_map_target(map_name, "is gone" if isinstance(exc, UnknownMap) else "has a bad name")
 
     def set_pose(self, pose):
         """Tell localization the robot is at ``pose`` (in the map frame); WrongMode when no map is in use."""

@@ -1,8 +1,11 @@
-"""Where to tell localization the robot is: a waypoint of the map's waypoints file, or its dock.
+"""Where to tell localization the robot is after a switch: a waypoint of the map, or its dock.
 
 After a switch to navigation on a named map the robot's pose is set for it (RViz's
 "2D Pose Estimate"): the pose given with the switch, else the map's ``dock`` waypoint when it
-has one. Read with the waypoints file's own loader. Pure: no rospy, no Flask.
+has one, else the running message asks for ``POST /pose``. Navigation on the stack's own map
+(map null) is left as the stack sets it, as before modes existed. After a restart of a crashed
+stack the robot has moved since, so nothing is set and the message says to check. Waypoints are
+read with the waypoints file's own loader. Pure: no rospy, no Flask.
 """
 
 from flask_move_server import waypoints_file, waypoints_format
@@ -34,3 +37,39 @@ def dock_pose(path):
         return waypoint_pose(path, DOCK)
     except (UnknownWaypoint, WaypointFileError):
         return None
+
+
+NO_DOCK = "running; set the robot's pose (POST /pose) \u2013 the map has no dock waypoint"
+
+
+def after_start(target, waypoints_path, publish):
+    """Set the robot's pose for a switch to ``target`` that now runs; the running message.
+
+    ``waypoints_path(map_name)``: that map's waypoints file; ``publish(pose)``: the estimate out.
+    """
+    if target.mode != "navigation":
+        return target.note or "running"
+    if target.pose is not None:
+        return _publish_note(publish, target.pose, "the given pose")
+    if target.map is None:
+        return "running"
+    found = dock_pose(waypoints_path(target.map))
+    if found is None:
+        return NO_DOCK
+    return _publish_note(publish, found, "the dock waypoint")
+
+
+def _publish_note(publish, pose, what):
+    try:
+        publish(pose)
+    except Exception as exc:  # ROS down, no publisher: the stack runs, say the pose is not set
+        return "running; the robot's pose could not be set ({}): POST /pose".format(exc)
+    return "running; the robot's pose was set to {} ({:.2f}, {:.2f}, {:.2f})".format(what, pose.x, pose.y, pose.yaw)
+
+
+def restarted_note(target, restarts):
+    """The running message after ``restarts`` restarts of a crashed stack."""
+    note = "running again after {} restart{}".format(restarts, "" if restarts == 1 else "s")
+    if target.mode == "navigation":
+        note += "; check the robot's pose (POST /pose sets it)"
+    return note
