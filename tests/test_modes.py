@@ -62,6 +62,7 @@ def test_a_switch_answers_starting_at_once_then_runs_and_is_remembered(cfg, harn
     assert harness.modes.wait(5) is True
     status = harness.modes.status()
     assert status["state"] == "running" and status["since"].endswith("+00:00")
+    assert "save the map (POST /maps" in status["message"]  # what to do next
     assert harness.states()[0] == ("mapping", "starting") and harness.states()[-1] == ("mapping", "running")
     assert harness.bus.latest("mode") == status
     with open(cfg.mode_state_file()) as f:

@@ -39,6 +39,8 @@ def dock_pose(path):
         return None
 
 
+MAPPING = "running; drive the robot around the place, then save the map (POST /maps, robotctl map save NAME)"
+OWN_MAP = "running on the map the navigation stack was configured with"
 NO_DOCK = "running; set the robot's pose (POST /pose) \u2013 the map has no dock waypoint"
 
 
@@ -48,11 +50,11 @@ def after_start(target, waypoints_path, publish):
     ``waypoints_path(map_name)``: that map's waypoints file; ``publish(pose)``: the estimate out.
     """
     if target.mode != "navigation":
-        return target.note or "running"
+        return target.note or MAPPING
     if target.pose is not None:
         return _publish_note(publish, target.pose, "the given pose")
     if target.map is None:
-        return "running"
+        return OWN_MAP
     found = dock_pose(waypoints_path(target.map))
     if found is None:
         return NO_DOCK
