@@ -274,3 +274,30 @@ def test_without_a_maps_service_the_app_still_lists_the_configured_folder(robot_
     app = create_app(robot_config, FakeRobot(), store)
     assert app.test_client().get("/maps").get_json() == {"maps": [], "active": None}
     assert error_of(app.test_client().get("/map")) == (404, "no_map")
+
+
+def test_a_broken_waypoints_file_of_the_new_map_is_reported_and_never_overwritten(client, modes, catalogue):
+    client.post("/maps", json={"name": "flat"})
+    client.post("/maps", json={"name": "garage"})
+    with open(catalogue.waypoints_path("garage"), "w") as f:
+        f.write("waypoints: [oops\n")
+    modes.switch("navigation", "garage")
+    assert client.get("/waypoints").get_json()["waypoints"] == []
+    assert "garage.waypoints.yaml" in client.get("/status").get_json()["waypoints"]["problem"]
+    assert error_of(client.put("/waypoints/bench", json={"x": 1, "y": 1, "yaw": 0})) == (409, "waypoints_file")
+    assert open(catalogue.waypoints_path("garage")).read() == "waypoints: [oops\n"
+    modes.switch("navigation", "flat")
+    assert len(client.get("/waypoints").get_json()["waypoints"]) == 3
+    assert client.get("/status").get_json()["waypoints"]["problem"] is None
+
+
+def test_an_edit_on_disk_of_the_active_maps_waypoints_is_served_and_told(client, modes, events, catalogue):
+    client.post("/maps", json={"name": "flat"})
+    modes.switch("navigation", "flat")
+    client.get("/waypoints")
+    sub = events.subscribe(["waypoints"], replay=False)
+    with open(catalogue.waypoints_path("flat"), "w") as f:
+        f.write("waypoints:\n  hall: [3.0, 1.0, 0.0]\n")
+    assert [w["name"] for w in client.get("/waypoints").get_json()["waypoints"]] == ["hall"]
+    kind, data = sub.next(1)
+    assert kind == "waypoints" and data["map"] == "flat"

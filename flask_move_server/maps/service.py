@@ -55,6 +55,8 @@ class MapService:
         self._saved = render.ImageCache(size=8)
         self._save_lock = threading.Lock()
         store.when_changed(self._waypoints_changed)
+        if source is not None:
+            source.mode_of = self._managed_mode
         if events is not None:
             events.listen("mode", self._on_mode)
 
@@ -67,12 +69,18 @@ class MapService:
 
     def mode(self):
         """``{"mode", "map"}`` now: the mode manager's, else the last ``mode`` event's."""
-        if self.modes is not None:
-            status = self.modes.status()
-            return {"mode": status.get("mode"), "map": status.get("map")}
+        managed = self._managed_mode()
+        if managed is not None:
+            return managed
         if self.source is not None:
             return self.source.context
         return {"mode": None, "map": None}
+
+    def _managed_mode(self):
+        if self.modes is None:
+            return None
+        status = self.modes.status()
+        return {"mode": status.get("mode"), "map": status.get("map")}
 
     def _on_mode(self, status):
         self.follow(status.get("map"))

@@ -47,6 +47,7 @@ class MapSource:
         self._closed = False
         self._sub = None
         self._wrong_type = None
+        self.mode_of = None  # a callable giving {"mode", "map"} now (the mode manager's), else the last event's
         if events is not None:
             events.listen("mode", self._on_mode)
         node.when_ready(self._setup)
@@ -95,8 +96,8 @@ class MapSource:
                 self._timer.start()
                 return
             self._announced_at = time.monotonic()
-            data = dict(self._context, version=self._version)
-        self._events.publish("map", data)
+            version = self._version
+        self._events.publish("map", dict(self.context, version=version))
 
     def _announce_late(self):
         with self._cond:
@@ -113,7 +114,10 @@ class MapSource:
 
     @property
     def context(self):
-        """``{"mode", "map"}`` of the last ``mode`` event: what the map in use belongs to."""
+        """``{"mode", "map"}``: what the map in use belongs to (``mode_of()``, else the last ``mode`` event)."""
+        told = self.mode_of() if self.mode_of is not None else None
+        if told is not None:
+            return told
         with self._cond:
             return dict(self._context)
 
