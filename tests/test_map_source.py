@@ -25,9 +25,8 @@ from tests.fake_robot import FakeRobot
 
 
 def occupancy_grid(width=6, height=4, value=0, yaw=0.3, frame="map", seq_stamp=(7, 8)):
-    from nav_msgs.msg import OccupancyGrid
-
     import rospy
+    from nav_msgs.msg import OccupancyGrid
 
     msg = OccupancyGrid()
     msg.header.frame_id = frame
@@ -128,7 +127,7 @@ def test_map_events_are_coalesced_but_the_last_map_is_always_told(live):
     wait_for(lambda: pub.get_num_connections() > 0, message="the subscriber to connect")
     for version, value in enumerate((0, 100, 0, 100), start=1):
         pub.publish(occupancy_grid(value=value))
-        wait_for(lambda: source.version == version, message="map {}".format(version))
+        wait_for(lambda v=version: source.version == v, message="map {}".format(version))
     seen = []
     while not seen or seen[-1] != 4:
         kind, data = sub.next(5)

@@ -301,3 +301,32 @@ def test_an_edit_on_disk_of_the_active_maps_waypoints_is_served_and_told(client,
     assert [w["name"] for w in client.get("/waypoints").get_json()["waypoints"]] == ["hall"]
     kind, data = sub.next(1)
     assert kind == "waypoints" and data["map"] == "flat"
+
+
+# robotctl map ------------------------------------------------------------------------------------
+
+
+def test_robotctl_map_save_list_rm(app, capsys, modes, catalogue):
+    from flask_move_server import client as robotctl
+    from tests.conftest import serve
+
+    with serve(app) as url:
+        assert robotctl.main(["--url", url, "map", "list"]) == 0
+        assert "no maps saved yet" in capsys.readouterr().out
+        assert robotctl.main(["--url", url, "map", "save", "flat"]) == 0
+        assert "saved map flat (2.0 x 1.5, with a copy of the waypoints)" in capsys.readouterr().out
+        assert robotctl.main(["--url", url, "map", "save", "flat"]) == 1
+        assert "already saved" in capsys.readouterr().err
+        assert robotctl.main(["--url", url, "map", "save", "flat", "--overwrite", "--then-navigate"]) == 0
+        assert "switching to navigation on flat" in capsys.readouterr().out
+        assert modes.calls == [("switch", "navigation", "flat")]
+        assert robotctl.main(["--url", url, "map"]) == 0
+        out = capsys.readouterr().out.splitlines()
+        assert out[1].startswith("* flat") and out[1].split()[2:6] == ["2.0", "x", "1.5", "3"]
+        assert robotctl.main(["--url", url, "map", "rm", "flat"]) == 1
+        assert "in use" in capsys.readouterr().err
+        modes.switch("mapping")
+        assert robotctl.main(["--url", url, "map", "rm", "flta"]) == 5
+        assert "Did you mean: 'flat'" in capsys.readouterr().err
+        assert robotctl.main(["--url", url, "map", "rm", "flat"]) == 0
+        assert not catalogue.exists("flat")
