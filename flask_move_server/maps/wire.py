@@ -40,6 +40,16 @@ class MapHeader:
     frame_id: str
 
 
+def shortest_float32(value):
+    """The shortest decimal that is the same float32: the 0.05 someone wrote, not 0.05000000074505806."""
+    packed = struct.pack("<f", value)
+    for digits in range(1, 10):
+        candidate = float("{:.{}g}".format(value, digits))
+        if struct.pack("<f", candidate) == packed:
+            return candidate
+    return value
+
+
 def decode(buff):
     """``(MapHeader, Grid)`` of an OccupancyGrid's serialized bytes; BadMapMessage if they are broken."""
     view = memoryview(buff)
@@ -58,7 +68,7 @@ def decode(buff):
         raise BadMapMessage("the map message says {} x {} cells but carries {} of {} bytes".format(
             width, height, min(count, len(view) - pos), count))
     try:
-        grid = Grid(width, height, resolution, x, y, bytes(view[pos:pos + count]),
+        grid = Grid(width, height, shortest_float32(resolution), x, y, bytes(view[pos:pos + count]),
                     origin_yaw=quaternion_to_yaw(qx, qy, qz, qw))
     except ValueError as exc:
         raise BadMapMessage("the map message is not a usable grid: {}".format(exc)) from None
