@@ -330,3 +330,15 @@ def test_robotctl_map_save_list_rm(app, capsys, modes, catalogue):
         assert "Did you mean: 'flat'" in capsys.readouterr().err
         assert robotctl.main(["--url", url, "map", "rm", "flat"]) == 0
         assert not catalogue.exists("flat")
+
+
+def test_a_service_built_after_the_mode_was_restored_serves_that_maps_waypoints(catalogue, store, events, source,
+                                                                                 robot_config):
+    catalogue.save("flat", room())
+    with open(catalogue.waypoints_path("flat"), "w") as f:
+        f.write("waypoints:\n  hall: [3.0, 1.0, 0.0]\n")
+    modes = FakeModes(events, mode="navigation", map_name="flat")
+    MapService(catalogue, store, source, modes=modes, events=events)
+    app = create_app(robot_config, FakeRobot(), store, events=events)
+    assert [w["name"] for w in app.test_client().get("/waypoints").get_json()["waypoints"]] == ["hall"]
+    assert events.latest("waypoints") == {"map": "flat", "version": 1}

@@ -59,8 +59,16 @@ class MapService:
             source.mode_of = self._managed_mode
         if events is not None:
             events.listen("mode", self._on_mode)
+            events.publish("waypoints", {"map": None, "version": store.version})  # for streams opened from now
+        if modes is not None:
+            self.use_modes(modes)
 
     # the mode's map and its waypoints ------------------------------------------------------
+
+    def use_modes(self, modes):
+        """Take ``modes`` as the mode manager (also after construction) and serve its map's waypoints."""
+        self.modes = modes
+        self.follow(modes.status().get("map"))
 
     @property
     def active_map(self):
