@@ -338,7 +338,7 @@ def test_a_service_built_after_the_mode_was_restored_serves_that_maps_waypoints(
     with open(catalogue.waypoints_path("flat"), "w") as f:
         f.write("waypoints:\n  hall: [3.0, 1.0, 0.0]\n")
     modes = FakeModes(events, mode="navigation", map_name="flat")
-    MapService(catalogue, store, source, modes=modes, events=events)
-    app = create_app(robot_config, FakeRobot(), store, events=events)
+    service = MapService(catalogue, store, source, modes=modes, events=events)
+    app = create_app(robot_config, FakeRobot(), store, events=events, maps=service)
     assert [w["name"] for w in app.test_client().get("/waypoints").get_json()["waypoints"]] == ["hall"]
     assert events.latest("waypoints") == {"map": "flat", "version": 1}
