@@ -342,3 +342,11 @@ def test_a_service_built_after_the_mode_was_restored_serves_that_maps_waypoints(
     app = create_app(robot_config, FakeRobot(), store, events=events, maps=service)
     assert [w["name"] for w in app.test_client().get("/waypoints").get_json()["waypoints"]] == ["hall"]
     assert events.latest("waypoints") == {"map": "flat", "version": 1}
+
+
+def test_waypoints_that_cannot_be_adopted_leave_no_map_behind(client, catalogue, robot_config):
+    with open(robot_config.waypoints.file, "wb") as f:
+        f.write(b"waypoints:\n  caf\xe9: [1, 2, 3]\n")  # not UTF-8: the copy cannot be made
+    r = client.post("/maps", json={"name": "flat"})
+    assert error_of(r) == (503, "map_file") and "the map was not saved" in r.get_json()["message"]
+    assert files_in(catalogue.folder) == []

@@ -25,7 +25,6 @@ from flask_move_server import waypoints_file
 from flask_move_server.errors import (
     MapExists,
     MapFileError,
-    MapNotReceived,
     ModesOff,
     MoveServerError,
     NoMap,
@@ -126,9 +125,9 @@ class MapService:
         meta.update(self.mode())
         return meta
 
-    def _source(self, missing=NoMap):
+    def _source(self):
         if self.source is None:
-            raise missing("This server does not follow a map topic, so it has no map in use.")
+            raise NoMap("This server does not follow a map topic, so it has no map in use.")
         return self.source
 
     # the maps folder -----------------------------------------------------------------------
@@ -171,19 +170,20 @@ class MapService:
         if not overwrite and self.catalogue.exists(name):
             raise MapExists("A map named {!r} is already saved; send \"overwrite\": true to replace it, "
                             "or pick another name.".format(name))
-        _, grid = self._source(MapNotReceived).latest(self.save_timeout)
+        _, grid = self.source.latest(self.save_timeout)
         with self._save_lock:
             first = not self.catalogue.names()
             existed = self.catalogue.exists(name)
             self.catalogue.save(name, grid, overwrite=overwrite)
-            if first:
-                self._adopt_waypoints(name, existed)
-        result = {"status": "ok", "map": self.describe(name), "adopted_waypoints": first}
+            adopted = self._adopt_waypoints(name, existed) if first else False
+        result = {"status": "ok", "map": self.describe(name), "adopted_waypoints": adopted}
         if then:
             result.update(self._switch_to(name))
         return result
 
     def _require_mapping(self):
+        if self.source is None:
+            raise WrongMode("This server follows no map topic, so there is no map being made to save.")
         if self.modes is None:
             return  # the stack is run elsewhere: whatever publishes the map is saved
         mode = self.modes.status().get("mode")
@@ -192,13 +192,14 @@ class MapService:
                             "(POST /mode {{\"mode\": \"mapping\"}}, robotctl map start).".format(mode))
 
     def _adopt_waypoints(self, name, existed):
-        """The first map: a copy of the single file's waypoints, unless the map has its own already."""
+        """The first map: a copy of the single file's waypoints, unless the map has its own; True if copied."""
         target = self.catalogue.waypoints_path(name)
         try:
             text = waypoints_file.read(self.single_file)
             if text is None or os.path.exists(target):
-                return
+                return False
             waypoints_file.atomic_write(target, text)
+            return True
         except (OSError, MoveServerError) as exc:
             if not existed:
                 self.catalogue.delete(name)
