@@ -13,7 +13,7 @@ import sys
 import time
 import traceback
 
-from flask_move_server import __version__, client_modes
+from flask_move_server import __version__, client_maps, client_modes
 from flask_move_server.api_client import DEFAULT_TIMEOUT, DEFAULT_URL, ExitStatus, RobotClient, dumps, waypoint_path
 from flask_move_server.client_text import LiveLine, describe_status, progress, waypoint_table, xy_yaw
 from flask_move_server.errors import ClientError
@@ -213,6 +213,8 @@ def build_parser():
     p.add_argument("--json", action="store_true", help="the raw JSON of GET /status")
     p.set_defaults(run=cmd_status)
     _waypoints_parser(sub)
+    client_maps.add_parser(sub, _positive)
+    client_modes.add_pose_parser(sub)
     p = sub.add_parser("teleop", help="drive at LIN m/s and ANG rad/s for the deadman time")
     p.add_argument("linear", type=_finite, metavar="LIN")
     p.add_argument("angular", type=_finite, metavar="ANG")
@@ -224,7 +226,6 @@ def build_parser():
     p = sub.add_parser("discover", help="find robots on this network (mDNS)")
     p.add_argument("--wait", type=_positive, default=3.0, metavar="S", help="listen S seconds (default 3)")
     p.set_defaults(run=cmd_discover)
-    client_modes.add_parsers(sub, _positive)
     return parser
 
 

@@ -81,11 +81,8 @@ def _describe(mode):
     return "{}: {}, {}".format(_title(mode), mode.get("state"), mode.get("message") or "")
 
 
-def add_parsers(sub, positive):
-    """``map start|use`` and ``pose`` on robotctl's subcommands; ``positive``: its seconds type."""
-    p = sub.add_parser("map", help="'map start' starts mapping; 'map use NAME' navigates on a saved map")
-    p.set_defaults(run=cmd_map)
-    actions = p.add_subparsers(dest="action", metavar="ACTION", required=True)
+def add_map_actions(actions, positive):
+    """``map start`` and ``map use`` on the ``map`` parser's actions; ``positive``: robotctl's seconds type."""
     start = actions.add_parser("start", help="start mapping (SLAM): drive around, then save the map")
     use = actions.add_parser("use", help="navigate on the saved map NAME")
     use.add_argument("name", metavar="NAME")
@@ -93,6 +90,10 @@ def add_parsers(sub, positive):
     for action in (start, use):
         action.add_argument("--no-wait", action="store_true", help="return once the switch is accepted")
         action.add_argument("--timeout", type=positive, metavar="S", help="give up waiting after S seconds (exit 12)")
+
+
+def add_pose_parser(sub):
+    """``robotctl pose NAME|X Y YAW``."""
     p = sub.add_parser("pose", help="set the robot's pose: NAME (a waypoint) or X Y YAW")
     p.add_argument("where", nargs="+", metavar="NAME|X Y YAW")
     p.set_defaults(run=cmd_pose)
