@@ -7,7 +7,8 @@ Starts its own ROS master; the sim is built in this process as ``cli`` builds it
 factor 1. Then:
 
 1. Switch times: each switch is ``stop()`` then ``start()`` of the stack backend, as
-   the mode manager calls them (idle → navigation on the sim's own map → mapping →
+   the mode manager calls them, with an action client there as the server's navigator
+   (``start()`` returns once it is connected) (idle → navigation on the sim's own map → mapping →
    navigation on a saved map → idle), ``--switches`` rounds; the saved map is the
    SLAM map of the demo flat's living room. Target: well under a second.
 2. Mapping at real time: the robot explores the demo flat in mapping mode, sent by
@@ -71,6 +72,11 @@ def saved_living_room(sim, tmp):
 
 
 def switch_rows(sim, saved, rounds):
+    """Switch times with an action client present, as the server's navigator is: start() waits for it."""
+    import actionlib
+    from move_base_msgs.msg import MoveBaseAction
+
+    client = actionlib.SimpleActionClient("move_base", MoveBaseAction)  # noqa: F841 (kept alive: a client)
     stacks = sim.stacks
     steps = [("idle → navigation (the sim's own map)", "navigation", None), ("navigation → mapping", "mapping", None),
              ("mapping → navigation on a saved map", "navigation", saved), ("navigation → idle", "idle", None)]

@@ -32,6 +32,7 @@ log = logging.getLogger(__name__)
 
 MODES = ("idle", "mapping", "navigation")
 MAPPING_MARGIN = 1.0  # m of canvas around the true map, so the SLAM map never clips the flat
+CLIENT_WAIT = 2.0  # s: start() waits this long at most for move_base's clients (the navigator) to connect
 MAX_SCAN_RATE = 11.0  # scans integrated per real second at most, however fast the sim runs
 
 
@@ -63,6 +64,9 @@ class SimulatedStack:
         if not self._node.wait_connected(timeout):
             raise StackFailed("The simulated {} mode could not start: no ROS master answered at {} within {} s."
                               .format(mode, self._node.master_uri, timeout))
+        if mode != "idle" and not self._move_base.wait_clients(CLIENT_WAIT):
+            log.warning("simulated stack: %s runs, but not every move_base client connected within %s s",
+                        mode, CLIENT_WAIT)
 
     def begin(self, mode, map_yaml=None, on_exit=None):
         """As :meth:`start`, without waiting for the node: the parts set up when it connects."""

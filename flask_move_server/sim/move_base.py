@@ -95,6 +95,26 @@ class MoveBaseStandIn:
             if self._cmd_vel is not None and self._endpoint is None and not self._closed.is_set():
                 self._endpoint = _Endpoint(self.action, self._execute)
 
+    def wait_clients(self, timeout):
+        """Block until every action client the master knows of is connected to the action server.
+
+        ``start()`` of a mode returns once this holds (or ``timeout`` passed), so the server's
+        navigator takes a goal right after the switch instead of answering 503 for ~30 ms.
+        True when connected (or when nobody is a client); False after ``timeout``.
+        """
+        with self._lock:
+            endpoint = self._endpoint
+        if endpoint is None:
+            return False
+        if not endpoint.has_clients():
+            return True
+        deadline = time.monotonic() + timeout
+        while not endpoint.clients_connected():
+            if time.monotonic() > deadline or self._closed.is_set():
+                return False
+            time.sleep(0.005)
+        return True
+
     def withdraw(self):
         """Take the action server away: the goal under way is aborted, then every action topic goes."""
         with self._lock:
@@ -228,6 +248,18 @@ class _Endpoint:
         self.server = actionlib.SimpleActionServer(action, MoveBaseAction, execute_cb=lambda goal: execute(self, goal),
                                                    auto_start=False)
         self.server.start()
+
+    def has_clients(self):
+        """True when the master knows a node publishing goals to this action (a client)."""
+        _, _, (publishers, _, _) = rospy.get_master().getSystemState()
+        goal_topic = self.server.action_server.goal_sub.resolved_name
+        return any(topic == goal_topic and nodes for topic, nodes in publishers)
+
+    def clients_connected(self):
+        """True when each topic of the action has a connection (clients heard the server)."""
+        actions = self.server.action_server
+        topics = (actions.goal_sub, actions.cancel_sub, actions.status_pub, actions.result_pub, actions.feedback_pub)
+        return all(t.get_num_connections() > 0 for t in topics)
 
     def close(self):
         self.withdrawn.set()
