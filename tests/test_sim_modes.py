@@ -185,6 +185,24 @@ def test_idle_has_no_move_base_no_map_and_goto_answers_503(parts):
     assert r.status_code == 202, r.get_json()  # goals taken as soon as the mode runs
 
 
+def test_a_switch_under_way_aborts_the_goal_and_stops_the_robot(parts):
+    parts.stacks.start("navigation")
+    r = parts.client.post("/goto", json={"x": 8.4, "y": 0.9, "yaw": 0.0})
+    assert r.status_code == 202, r.get_json()
+    wait_for(lambda: parts.pose().distance_to(Pose2D(0.0, 0.0, 0.0)) > 0.3, timeout=30, message="the robot moving")
+    parts.stacks.start("mapping")
+    navigation = wait_for(lambda: _ended(parts.client.get("/status").get_json()["navigation"]), timeout=10,
+                          message="the server to hear the goal's end")
+    assert navigation["state"] == "aborted", navigation
+    stopped = parts.pose()
+    time.sleep(0.5)
+    assert parts.pose().distance_to(stopped) < 0.01
+
+
+def _ended(navigation):
+    return navigation if navigation["state"] not in ("active", "canceling") else None
+
+
 def test_initialpose_puts_the_robot_there_if_it_fits(parts):
     parts.stacks.start("navigation")
     pub = rospy.Publisher(parts.config.modes.initial_pose_topic, PoseWithCovarianceStamped, queue_size=1)
