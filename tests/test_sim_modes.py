@@ -18,6 +18,7 @@ from nav_msgs.msg import OccupancyGrid, Path
 from flask_move_server import cli
 from flask_move_server.drive import make_drive
 from flask_move_server.drive.estop import EStop
+from flask_move_server.errors import BadRequest, StackFailed
 from flask_move_server.geometry import Pose2D
 from flask_move_server.maps import mapfile
 from flask_move_server.ros.convert import write_pose
@@ -201,6 +202,19 @@ def test_a_switch_under_way_aborts_the_goal_and_stops_the_robot(parts):
 
 def _ended(navigation):
     return navigation if navigation["state"] not in ("active", "canceling") else None
+
+
+def test_a_map_that_cannot_be_read_fails_the_start_with_a_reason_and_leaves_nothing_running(parts, tmp_path):
+    parts.stacks.start("navigation")
+    broken = tmp_path / "broken.yaml"
+    broken.write_text("image: missing.pgm\nresolution: 0.05\norigin: [0.0, 0.0, 0.0]\n")
+    with pytest.raises(StackFailed, match="missing.pgm"):
+        parts.stacks.start("navigation", str(broken))
+    assert parts.stacks.mode is None and not parts.sim.move_base.serving
+    with pytest.raises(BadRequest):
+        parts.stacks.start("mapping", str(broken))
+    with pytest.raises(BadRequest):
+        parts.stacks.start("exploring")
 
 
 def test_initialpose_puts_the_robot_there_if_it_fits(parts):
