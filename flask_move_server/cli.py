@@ -178,7 +178,8 @@ class Server:
         if cfg.sim.enabled:
             from flask_move_server.sim.runner import Simulation
 
-            self._simulation = Simulation(cfg, node, drive)
+            # With the sim as the modes' stack, the mode manager's restore() starts the mode.
+            self._simulation = Simulation(cfg, node, drive, autostart=cfg.stack_kind() != "sim")
             stack.callback(self._simulation.close)
         robot = build_robot(cfg, node, drive, estop)
         stack.callback(robot.close)
