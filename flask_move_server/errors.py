@@ -237,3 +237,9 @@ class NoMap(MoveServerError, LookupError):
     """No map is published on the map topic (nothing is mapping or serving a map)."""
 
     code = "no_map"
+
+
+class TooManyStreams(MoveServerError, RuntimeError):
+    """Every ``GET /events`` stream the server allows (``server.max_streams``) is open already."""
+
+    code = "too_many_streams"

@@ -23,7 +23,7 @@ ERROR_CODES = {
     405: "method_not_allowed: the path takes other methods (the Allow header lists them)",
     409: "navigation_failed (with state), no_pose, estop_latched, estop_button_pressed, waypoints_file",
     413: "body_too_large: the body is over server.max_body_bytes",
-    503: "ros_unavailable, move_base_unavailable, drive_error, shutting_down, waypoints_locked",
+    503: "ros_unavailable, move_base_unavailable, drive_error, shutting_down, waypoints_locked, too_many_streams",
 }
 
 
@@ -50,6 +50,7 @@ def build(config):
         "/health": {"get": _open(_operation("Is the server up, ROS connected, move_base ready?", None, {
             200: _json(_object({"status": {"enum": ["ok"]}, "ros": {"type": "string"},
                                 "move_base": {"enum": ["ready", "unavailable"]}}))}))},
+        "/events": {"get": _events()},
         "/openapi.json": {"get": _open(_operation("This description", None, {200: _json({"type": "object"})}))},
     }
     paths.update(_static_files())
@@ -112,6 +113,14 @@ def _waypoint_item():
     for operation in item.values():
         operation["parameters"] = [name]
     return item
+
+
+def _events():
+    stream = {"description": "Server-Sent Events: 'event: <kind>' (pose, status, estop, plan, mode, map, "
+                             "waypoints) and 'data: <one JSON object>', the latest of each kind first; "
+                             "': heartbeat' comments. docs/api.md lists each kind's fields.",
+              "content": {"text/event-stream": {"schema": {"type": "string"}}}}
+    return _operation("The robot's state as it changes (Server-Sent Events)", None, {200: stream}, errors=(503,))
 
 
 def _page():
