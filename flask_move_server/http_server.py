@@ -15,10 +15,9 @@ per queued request. This module builds the server from ``ServerConfig`` with:
   holds one), so the owner can always stop the robot;
 - a stream lane: each ``GET /events`` stream is served on a thread of its own (at most
   ``server.max_streams``), never on one of the ``server.threads`` workers, so open pages
-  never delay ``/stop`` or anything else; its events are sent as they are written (waitress
-  would keep a write under ``send_bytes`` until the loop next wakes, up to a second), and a
-  stream's unsent output is bounded (``STREAM_BACKLOG``): its writer waits instead, and a
-  peer that takes nothing for ``channel_timeout`` is disconnected;
+  never delay ``/stop`` or anything else; a stream's unsent output is bounded
+  (``STREAM_BACKLOG``): its writer waits instead, and a peer that takes nothing for
+  ``channel_timeout`` is disconnected; the app can ask whether the peer left;
 - errors in the API's JSON shape wherever waitress answers before the app;
 - a rate-limited summary instead of one ``Task queue depth`` line per request.
 """
@@ -75,7 +74,11 @@ class JsonErrorTask(ErrorTask):
 
 
 class RobotTask(WSGITask):
-    """A request served by the app; an event stream's writes go out at once and never pile up."""
+    """A request served by the app; an event stream's unsent writes never pile up.
+
+    Waitress (2.x: ``send_bytes`` is 1) sends each write from the task's thread as it is made,
+    the headers with the first body chunk, so an event goes out when the stream yields it.
+    """
 
     _streaming = None
 
@@ -90,9 +93,7 @@ class RobotTask(WSGITask):
                                   for name, value in self.response_headers)
         if self._streaming:
             self.channel.wait_for_backlog(STREAM_BACKLOG)
-        super().write(data)
-        if self._streaming:
-            self.channel.server.pull_trigger()  # wake the loop: send now, not when it next wakes
+        super().write(data)  # sent from this thread at once (waitress 2's send_bytes is 1)
 
 
 class RobotChannel(HTTPChannel):
