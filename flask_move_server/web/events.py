@@ -123,4 +123,4 @@ class EventStream:
 
 def format_event(kind, data):
     """One SSE event: ``event: kind`` and ``data: {json}`` (JSON has no newline: one data line)."""
-    return "event: {}\ndata: {}\n\n".format(kind, json.dumps(data, separators=(",", ":")))
+    return "event: {}\ndata: {}\n\n".format(kind, json.dumps(data, separators=(",", ":"), default=str))
