@@ -58,11 +58,18 @@ class Reporter:
         return self
 
     def _run(self):
+        failing = False
         while not self._stop.wait(self._period):
             try:
                 self.sample()
-            except Exception:  # a part's bug must not end the page's live view
-                log.exception("sampling the robot for events failed")
+            except Exception:  # a part's bug must not end the page's live view, nor flood the log
+                if not failing:
+                    log.exception("sampling the robot for events failed (logged once until it works again)")
+                failing = True
+            else:
+                if failing:
+                    log.info("sampling the robot for events works again")
+                failing = False
 
     def sample(self):
         """Read the robot once and publish what changed since the last sample."""
