@@ -144,3 +144,13 @@ def test_a_stream_is_dropped_by_the_kernel_when_its_peer_stops_acknowledging(rob
         assert len(streams) == 1
         timeout = streams[0].socket.getsockopt(socket.IPPROTO_TCP, socket.TCP_USER_TIMEOUT)
         assert timeout == 12000
+
+
+def test_a_page_knows_it_is_connected_at_once_even_when_nothing_has_happened_yet(robot_config, store, bus):
+    """The answer's headers come with a first chunk written at once, not with the first event (or
+    the first heartbeat, 15 s later: past the reader's 10 s timeout)."""
+    with _serve(robot_config, store, bus) as (_, url), EventReader(url) as reader:
+        assert reader.status_code == 200
+        bus.publish("waypoints", {"map": None, "version": 1})
+        assert reader.next() == ("waypoints", {"map": None, "version": 1})
+        assert reader.retry == 2000
