@@ -159,3 +159,25 @@ def test_a_failing_sample_is_logged_once_and_sampling_goes_on(caplog):
         reporter.close()
     failures = [r for r in caplog.records if "sampling the robot for events failed" in r.getMessage()]
     assert len(failures) == 1
+
+
+class EngagedMidSample(MovingRobot):
+    """The e-stop is pressed while the reporter is reading the rest of the robot."""
+
+    press = False
+
+    def status(self):
+        status = super().status()  # read before the press: not latched
+        if self.press:
+            self.engage_estop("button")
+        return status
+
+
+def test_an_estop_pressed_during_a_sample_is_never_told_as_released_afterwards():
+    robot = EngagedMidSample()
+    reporter, sub, clock = _reporter(robot)
+    reporter.sample()
+    robot.press = True
+    clock.now += 0.1
+    reporter.sample()
+    assert reporter._events.latest("estop")["latched"] is True
