@@ -24,6 +24,7 @@ BENCHMARKS = [
     ("abuse", "bench_abuse.py", ["--connections", "100", "--rounds", "10", "--signals", "2",
                                  "--storm-seconds", "4"]),
     ("sim_modes", "bench_sim_modes.py", ["--switches", "2", "--drive-seconds", "30"]),
+    ("events", "bench_events.py", ["--rest-seconds", "3", "--drive-seconds", "5", "--stops", "3"]),
 ]
 
 

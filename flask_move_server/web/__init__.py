@@ -10,6 +10,7 @@ from flask_move_server.events import EventBus
 from flask_move_server.modes.manager import ModeManager
 from flask_move_server.web import auth, error_handlers, guard
 from flask_move_server.web.estop import estop
+from flask_move_server.web.events import events_api
 from flask_move_server.web.maps import maps_api
 from flask_move_server.web.modes import modes as modes_routes
 from flask_move_server.web.openapi import description
@@ -50,6 +51,7 @@ def create_app(config, robot, store, token=None, events=None, modes=None, maps=N
     app.register_blueprint(api)
     app.register_blueprint(estop)
     app.register_blueprint(maps_api)
+    app.register_blueprint(events_api)
     app.register_blueprint(description)
     app.register_blueprint(modes_routes)
     if config.server.static:
