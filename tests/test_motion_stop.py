@@ -154,6 +154,30 @@ def test_a_stop_racing_a_goto_cancels_that_goal(client, ready_robot, move_base):
     assert len(move_base.goals) == 1
 
 
+def test_a_goal_sent_as_the_last_one_ends_is_heard_to_its_own_end(client, ready_robot, move_base):
+    """A /goto woken by the end of the last goal sends the next while actionlib is still finishing it.
+
+    actionlib calls the done callback before it marks the goal DONE; the next goal sent in between
+    got that DONE, its own end was never heard, and /status said "active" for ever. Held open here
+    (the callback lingers 0.3 s) so the next goal lands in that gap every time.
+    """
+    navigator = ready_robot.navigator
+    real_done, ended = navigator._done, threading.Event()
+
+    def lingering_done(seq, status):
+        real_done(seq, status)
+        ended.set()
+        time.sleep(0.3)  # actionlib's thread, between the callback and marking the goal DONE
+
+    navigator._done = lingering_done
+    assert client.post("/goto", json={"x": 1.0, "y": 0}).status_code == 202
+    assert ended.wait(10), "the first goal to end"
+    navigator._done = real_done
+    assert client.post("/goto", json={"x": 2.0, "y": 0}).status_code == 202
+    wait_for(lambda: client.get("/status").get_json()["navigation"]["state"] == "succeeded", timeout=10,
+             message="the second goal's end")
+
+
 def test_a_cancel_move_base_never_confirms_stays_canceling_and_says_why(client, ready_robot, move_base):
     ready_robot.navigator.cancel_patience = 0.5
     client.post("/goto", json={"x": HOLD_X, "y": 0})

@@ -16,6 +16,7 @@ import time
 
 import actionlib
 import rospy
+from actionlib import CommState, SimpleGoalState
 from actionlib_msgs.msg import GoalID, GoalStatus
 from geometry_msgs.msg import PoseStamped
 from move_base_msgs.msg import MoveBaseAction, MoveBaseGoal
@@ -92,6 +93,7 @@ class Navigator:
                 self._goal, self._state, self._feedback_pose, self._message = goal, ACTIVE, None, None
                 self._cond.notify_all()
             if self._client is not None:
+                _settle_last_goal(self._client)
                 self._client.send_goal(
                     _move_base_goal(goal.pose, self._frame),
                     done_cb=lambda status, result: self._done(seq, status),
@@ -256,3 +258,20 @@ def _move_base_goal(pose, frame):
     goal = MoveBaseGoal()
     goal.target_pose = pose_stamped(pose, frame, rospy.Time.now())
     return goal
+
+
+def _settle_last_goal(client, patience=1.0):
+    """Wait until actionlib has marked an ended goal DONE before the next goal is sent.
+
+    SimpleActionClient calls the done callback *before* it marks its goal DONE. A goal sent in
+    between (the callback woke a waiting ``/goto``, whose client sent the next at once) gets that
+    DONE instead: actionlib then logs "received DONE twice", never reports the new goal's end, and
+    ``/status`` said ``active`` for ever. A goal still running is replaced as before.
+    """
+    handle = client.gh
+    if handle is None or handle.get_comm_state() != CommState.DONE:
+        return
+    deadline = time.monotonic() + patience
+    with client.done_condition:
+        while client.simple_state != SimpleGoalState.DONE and time.monotonic() < deadline:
+            client.done_condition.wait(0.05)
