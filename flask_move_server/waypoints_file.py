@@ -121,8 +121,7 @@ def atomic_write(path, text, backup_text=None):
             f.write(text)
             f.flush()
             os.fsync(f.fileno())
-        if os.path.exists(path):
-            os.chmod(tmp, os.stat(path).st_mode & 0o7777)
+        os.chmod(tmp, os.stat(path).st_mode & 0o7777 if os.path.exists(path) else new_file_mode())
         if backup_text is not None:
             _write_backup(path, backup_text)
         os.replace(tmp, path)
@@ -174,3 +173,20 @@ def fsync_dir(directory):
         os.fsync(fd)
     finally:
         os.close(fd)
+
+
+def new_file_mode():
+    """The mode a new file gets from ``open()`` here (0o666 less the umask), as editors and map_saver give it.
+
+    ``mkstemp`` makes its files 0o600: a waypoints file or map written through it could not be read
+    by the operator's other accounts (``scp`` as pi, a backup job). Read from /proc, because
+    ``os.umask`` can only be read by setting it, which races the other threads.
+    """
+    try:
+        with open("/proc/self/status", encoding="ascii") as f:
+            for line in f:
+                if line.startswith("Umask:"):
+                    return 0o666 & ~int(line.split()[1], 8)
+    except (OSError, ValueError):
+        pass
+    return 0o644

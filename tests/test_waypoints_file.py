@@ -293,3 +293,16 @@ def test_sigkill_during_saves_leaves_a_whole_file_and_the_next_start_cleans_up(t
         names = {w.name for w in WaypointStore(path).all()}  # loads: the file is whole
         assert {prefix + str(i) for i in range(acked)} <= names
         assert [f for f in os.listdir(tmp_path) if f.endswith(".tmp")] == []
+
+
+def test_a_new_waypoints_file_is_readable_by_others_and_an_old_one_keeps_its_mode(tmp_path):
+    old = os.umask(0o022)
+    try:
+        store = WaypointStore(str(tmp_path / "waypoints.yaml"))
+        store.put(make_waypoint("kitchen", 1.0, 2.0, 0.0))
+        assert os.stat(store.path).st_mode & 0o777 == 0o644
+        os.chmod(store.path, 0o600)  # the operator's choice is kept
+        store.put(make_waypoint("office", 1.0, 2.0, 0.0))
+        assert os.stat(store.path).st_mode & 0o777 == 0o600
+    finally:
+        os.umask(old)
