@@ -3,6 +3,7 @@
 ``mapping`` runs ``roslaunch <modes.mapping_launch> server:=false``; ``navigation`` runs
 ``roslaunch <modes.navigation_launch> server:=false [map:=<yaml>]`` (no map: the launch file's
 default). The launch files must declare the args ``server`` (and ``map`` for navigation).
+roslaunch runs in the server's environment (ROS_PACKAGE_PATH, ROS_HOME, ``$(optenv ...)``).
 
 Before roslaunch starts, its launch file is parsed in this process: a node whose package or
 executable is missing fails at once with the apt command that installs it, and the nodes that
@@ -30,12 +31,11 @@ MODES = ("mapping", "navigation")
 class LaunchedStack:
     """Runs one mode's launch file at a time; ``start`` blocks until ready, ``stop`` until all is gone."""
 
-    def __init__(self, modes, map_topic="map", action="move_base", master_uri=None, env=None):
+    def __init__(self, modes, map_topic="map", action="move_base", master_uri=None):
         self.modes = modes
         self.map_topic = readiness.global_name(map_topic)
         self.status_topic = readiness.global_name(action.rstrip("/") + "/status")
         self.master_uri = master_uri
-        self.env = env
         self._lock = threading.Lock()
         self._proc = None
         self._stopping = False
@@ -62,7 +62,7 @@ class LaunchedStack:
         readiness.check_master(self.master_uri)
         command = self.command(mode, map_yaml)
         respawning = readiness.check_launch(command[1:])
-        proc = child.StackProcess(command, env=self.env)
+        proc = child.StackProcess(command)
         try:
             proc.start()
         except OSError as exc:
@@ -135,6 +135,8 @@ class LaunchedStack:
             proc, self._proc = self._proc, None
             self._stopping = True
         if proc is not None:
+            with proc.changed:
+                proc.changed.notify_all()  # the watcher sees _stopping at once
             proc.stop(self.modes.stop_timeout)
             log.info("the navigation stack stopped")
 
@@ -166,6 +168,6 @@ def died_message(node, code, log_file=None, last_line=None):
         how = "exited with status {}".format(code)
     else:
         how = "ended"
-    said = " ({})".format(last_line) if last_line else ""
+    said = " ({})".format(last_line) if last_line and code and code > 0 else ""  # a killed node said nothing
     where = "; its log: {}".format(log_file) if log_file else ""
     return "the navigation stack's {} node {}{}{}".format(node, how, said, where)
