@@ -87,6 +87,7 @@ def save_map(folder, name, width, height):
     return str(folder / (name + ".yaml"))
 
 
+@pytest.mark.timeout(60 + 40 * CYCLES)
 def test_switching_modes_leaves_nothing_of_the_previous_stack(stack_env, ros_node, tmp_path):
     maps = [save_map(tmp_path, "flat", 31, 21), save_map(tmp_path, "garage", 43, 11)]
     master_uri = stack_env["ROS_MASTER_URI"]
