@@ -12,6 +12,7 @@ import os
 import signal
 import subprocess
 import sys
+import threading
 import time
 
 import pytest
@@ -233,3 +234,23 @@ def test_roslaunchs_own_cannot_launch_line_reads_as_an_apt_command():
         "gmapping is not installed: sudo apt install ros-noetic-gmapping")
     assert readiness.cannot_launch_message("move_base", "move_base", "Cannot locate node of type [move_base]") == (
         "move_base has no node move_base: reinstall it (sudo apt install --reinstall ros-noetic-move-base)")
+
+
+def test_closing_while_starting_stops_the_start(stack_env):
+    stack = make_stack(stack_env)
+    errors = []
+
+    def start():
+        try:
+            stack.start("navigation", os.path.join(ROOT, "config", "maps", "demo.yaml"))
+        except StackFailed as exc:
+            errors.append(str(exc))
+
+    starter = threading.Thread(target=start)
+    starter.start()
+    wait_for(lambda: any("stub_packages" in c for c in stack_processes(stack_env["ROS_MASTER_URI"]).values()),
+             timeout=20, message="roslaunch to start its nodes")
+    stack.close()
+    starter.join(30)
+    assert errors == ["the navigation stack was stopped before it was ready"]
+    assert nothing_left(stack_env["ROS_MASTER_URI"])

@@ -68,7 +68,10 @@ class LaunchedStack:
         except OSError as exc:
             raise StackFailed("cannot run roslaunch ({}): is ROS installed?".format(exc.strerror))
         with self._lock:
-            self._proc = proc
+            closed, self._proc = self._closed, proc
+        if closed:  # close() came while roslaunch was starting
+            self.stop()
+            raise StackFailed("the server is shutting down")
         self._wait_ready(proc, mode, respawning)
         threading.Thread(target=self._watch, args=(proc, respawning, on_exit), name="stack-watch",
                          daemon=True).start()
@@ -86,6 +89,9 @@ class LaunchedStack:
         deadline = time.monotonic() + self.modes.start_timeout
         missing = wanted
         while True:
+            with self._lock:
+                if self._proc is not proc:
+                    raise StackFailed("the {} stack was stopped before it was ready".format(mode))
             failure = self._failure(proc, respawning)
             if failure is None:
                 missing = readiness.missing(wanted, proc.pids(), self.master_uri)
@@ -159,6 +165,7 @@ class LaunchedStack:
         if leftovers:
             log.warning("stopping navigation stack processes left by a server that died: %s", sorted(leftovers))
             child.stop_tree(lambda: set(children.orphans()), 2.0)
+
 
 def died_message(node, code, log_file=None, last_line=None):
     """One sentence for a node of the stack that ended, with what it said last."""
