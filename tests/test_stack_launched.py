@@ -9,6 +9,7 @@ environment points at this test's ROS master.
 """
 
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -132,7 +133,8 @@ def test_a_part_that_dies_is_reported_once_in_words(stack_env):
         wait_for(lambda: reports, timeout=15, message="on_exit")
         time.sleep(1.0)  # a second report would come from the same watcher within this
         assert len(reports) == 1
-        assert reports[0].startswith("the navigation stack's move_base node was killed (signal 9); its log: ")
+        assert re.match(r"the navigation stack's move_base node was killed \(signal 9\); its log: {}/\S+/move_base-\d+"
+                        r"\.log$".format(re.escape(stack_env["ROS_LOG_DIR"])), reports[0]), reports[0]
     finally:
         stack.close()
     assert nothing_left(stack_env["ROS_MASTER_URI"])

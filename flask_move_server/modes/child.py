@@ -24,7 +24,7 @@ DIED = re.compile(r"^\[(?P<proc>[^\]]+)-\d+\] process has died \[pid \d+, exit c
 REQUIRED_DIED = re.compile(r"REQUIRED process \[(?P<proc>[^\]]+)-\d+\] has died")
 CANNOT_LAUNCH = re.compile(r"^ERROR: cannot launch node of type \[(?P<pkg>[^/\]]+)/(?P<type>[^\]]+)\]: (?P<why>.*)")
 ROSLAUNCH_SAYS = re.compile(r"^(process\[|\[[^\]]+-\d+\] |log file: |ROS_MASTER_URI=|setting /run_id)")
-LOG_FILE = re.compile(r"^log file: (?P<path>\S+)")
+NODE_LOG = re.compile(r" __log:=(\S+?)\]?\.?$")  # the died line's command: the node's own log file
 _serials = iter(range(1, 1 << 30))
 
 
@@ -70,11 +70,8 @@ class StackProcess:
         m = DIED.match(line) or REQUIRED_DIED.search(line)
         if m:
             code = int(m.groupdict().get("code") or 0) or None
-            self.events.append(["died", m.group("proc"), code, None, self._said_before()])
-            return
-        m = LOG_FILE.match(line)
-        if m and self.events and self.events[-1][0] == "died":
-            self.events[-1][3] = m.group("path")
+            log_file = NODE_LOG.search(line)
+            self.events.append(["died", m.group("proc"), code, log_file and log_file.group(1), self._said_before()])
             return
         m = CANNOT_LAUNCH.match(line)
         if m:

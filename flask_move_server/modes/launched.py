@@ -79,7 +79,9 @@ class LaunchedStack:
     def command(self, mode, map_yaml=None):
         """The roslaunch command line of ``mode``."""
         launch = self.modes.mapping_launch if mode == "mapping" else self.modes.navigation_launch
-        argv = [shutil.which("roslaunch") or "roslaunch", "--skip-log-check"] + launch.split() + ["server:=false"]
+        options = ["--skip-log-check", "--no-summary", "--disable-title",  # no du of ROS_HOME, no param dump
+                   "--sigint-timeout={:g}".format(self.modes.stop_timeout), "--sigterm-timeout=2"]
+        argv = [shutil.which("roslaunch") or "roslaunch"] + options + launch.split() + ["server:=false"]
         if mode == "navigation" and map_yaml:
             argv.append("map:={}".format(os.path.abspath(map_yaml)))
         return argv
