@@ -54,6 +54,18 @@ def orphans():
     return result
 
 
+def describe(pid):
+    """``pid (program)`` for messages: the program a process runs (the script, for Python ones)."""
+    try:
+        with open("/proc/{}/cmdline".format(pid), "rb") as f:
+            argv = [a.decode(errors="replace") for a in f.read().split(b"\0") if a]
+    except OSError:
+        return str(pid)
+    words = [a for a in argv if not a.startswith("-")]
+    program = words[1] if len(words) > 1 and os.path.basename(words[0]).startswith("python") else (words or ["?"])[0]
+    return "{} ({})".format(pid, os.path.basename(program))
+
+
 def send(pids, sig):
     """Send ``sig`` to each pid that still exists."""
     for pid in pids:

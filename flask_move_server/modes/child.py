@@ -99,8 +99,12 @@ class StackProcess:
 
     def stop(self, timeout):
         """Stop the whole tree (see :func:`stop_tree`) and reap roslaunch; returns once all are gone."""
-        stop_tree(self.pids, timeout)
+        stop_tree(self.pids, timeout, first=self._roslaunch_group)
         self._reap()
+
+    def _roslaunch_group(self):
+        """roslaunch's process group (itself: each node has its own session) while roslaunch runs."""
+        return {self.process.pid} if self.process is not None and self.exit_code() is None else set()
 
     def _reap(self):
         if self.process is not None:
@@ -112,18 +116,23 @@ class StackProcess:
             self._reader.join(2)
 
 
-def stop_tree(current_pids, timeout):
-    """SIGINT to every process ``current_pids()`` names, SIGTERM after ``timeout``, then SIGKILL.
+def stop_tree(current_pids, timeout, first=None):
+    """SIGINT, then SIGTERM to every process ``current_pids()`` names after ``timeout``, then SIGKILL.
 
-    roslaunch stops its nodes on SIGINT itself; signalling the nodes too means a wedged
-    roslaunch cannot keep them alive. Returns True when all are gone.
+    SIGINT goes to ``first()`` when that names any (roslaunch, which SIGINTs each node and
+    waits for it), else to all. Never a second SIGINT to a Python node: one arriving during its
+    rospy shutdown can leave it hung. The later signals go to every process left, so a wedged
+    roslaunch cannot keep its nodes alive. Returns True when all are gone.
     """
     for sig, wait in ((signal.SIGINT, timeout), (signal.SIGTERM, 2.0), (signal.SIGKILL, 5.0)):
         pids = current_pids()
         if not pids:
             return True
-        if sig != signal.SIGINT:
-            log.warning("the navigation stack still runs: sending %s to %s", sig.name, sorted(pids))
+        if sig == signal.SIGINT:
+            pids = (first and first()) or pids
+        else:
+            log.warning("the navigation stack still runs: sending %s to %s", sig.name,
+                        ", ".join(children.describe(pid) for pid in sorted(pids)))
         children.send(pids, sig)
         if _gone_within(current_pids, wait):
             return True
