@@ -104,7 +104,7 @@ def test_switching_modes_leaves_nothing_of_the_previous_stack(stack_env, ros_nod
                 assert not previous & set(now), "left running: {}".format([now[p] for p in previous & set(now)])
                 assert served_map_width(ros_node) == width
                 previous = set(now)
-            stack.stop()
+            stack.start("idle", None)
             assert nothing_left(master_uri), stack_processes(master_uri)
     finally:
         stack.close()
@@ -256,3 +256,21 @@ def test_closing_while_starting_stops_the_start(stack_env):
     starter.join(30)
     assert errors == ["the navigation stack was stopped before it was ready"]
     assert nothing_left(stack_env["ROS_MASTER_URI"])
+
+
+def test_a_stack_left_by_a_dead_server_is_stopped_by_the_next_one():
+    from flask_move_server import children
+
+    gone = subprocess.Popen(["true"])
+    gone.wait()  # a server pid that no longer exists
+    orphan = subprocess.Popen(["sleep", "600"], env=dict(os.environ, **{children.MARKER: "{}:1".format(gone.pid)}))
+    ours = subprocess.Popen(["sleep", "600"], env=dict(os.environ, **{children.MARKER: "{}:999".format(os.getpid())}))
+    try:
+        LaunchedStack(ModesConfig()).start("idle")
+        assert orphan.wait(5) == -signal.SIGINT
+        assert ours.poll() is None  # a live server's stack is its own business
+    finally:
+        for proc in (orphan, ours):
+            if proc.poll() is None:
+                proc.kill()
+                proc.wait()

@@ -49,16 +49,20 @@ class LaunchedStack:
     def start(self, mode, map_yaml=None, on_exit=None):
         """Start ``mode``'s stack and block until it is ready; StackFailed says what went wrong.
 
+        Whatever ran before is stopped first; ``idle`` only stops it.
+
         ``on_exit(message)`` is called once, from a watcher thread, if the stack dies by itself later.
         """
-        if mode not in MODES:
-            raise ValueError("no stack runs in mode {!r}".format(mode))
+        if mode not in MODES + ("idle",):
+            raise ValueError("unknown mode {!r}".format(mode))
         self.stop()
+        self._sweep_orphans()
+        if mode == "idle":  # no stack at all
+            return
         with self._lock:
             if self._closed:
                 raise StackFailed("the server is shutting down")
             self._stopping = False
-        self._sweep_orphans()
         readiness.check_master(self.master_uri)
         command = self.command(mode, map_yaml)
         respawning = readiness.check_launch(command[1:])
