@@ -274,3 +274,17 @@ def test_a_stack_left_by_a_dead_server_is_stopped_by_the_next_one():
             if proc.poll() is None:
                 proc.kill()
                 proc.wait()
+
+
+@pytest.mark.parametrize("line,level", [
+    ("[ERROR] [1700000000.1]: Failed to load map", "ERROR"),
+    ("[ WARN] [1700000000.123456]: Timed out waiting for transform", "WARNING"),
+    ("[move_base-5] process has died [pid 12, exit code 1, cmd x __log:=/l/move_base-5.log].", "ERROR"),
+    ("process[amcl-4]: started with pid [4242]", "INFO"),
+    ("update frame 12", "DEBUG"),  # gmapping's chatter, several lines per scan: kept out of the journal
+    ("Average Scan Matching Score=301.2", "DEBUG"),
+])
+def test_the_stacks_output_reaches_the_journal_at_its_level(line, level):
+    import logging
+
+    assert logging.getLevelName(child.level_of(line)) == level

@@ -25,6 +25,8 @@ REQUIRED_DIED = re.compile(r"REQUIRED process \[(?P<proc>[^\]]+)-\d+\] has died"
 CANNOT_LAUNCH = re.compile(r"^ERROR: cannot launch node of type \[(?P<pkg>[^/\]]+)/(?P<type>[^\]]+)\]: (?P<why>.*)")
 ROSLAUNCH_SAYS = re.compile(r"^(process\[|\[[^\]]+-\d+\] |log file: |ROS_MASTER_URI=|setting /run_id)")
 NODE_LOG = re.compile(r" __log:=(\S+?)\]?\.?$")  # the died line's command: the node's own log file
+LEVELS = ((re.compile(r"\[ *(ERROR|FATAL)\]|^ERROR|REQUIRED process|process has died"), logging.ERROR),
+          (re.compile(r"\[ *WARN\]"), logging.WARNING))
 _serials = iter(range(1, 1 << 30))
 
 
@@ -56,7 +58,7 @@ class StackProcess:
         for raw in self.process.stdout:
             line = ANSI.sub("", raw.decode("utf-8", "replace")).rstrip()
             if line:
-                log.info("%s", line)
+                log.log(level_of(line), "%s", line)
                 self._note(line)
         self.process.stdout.close()
 
@@ -146,3 +148,16 @@ def _gone_within(current_pids, timeout):
             return False
         time.sleep(0.05)
     return True
+
+
+def level_of(line):
+    """The log level of a line of the stack's output.
+
+    Errors and warnings (ROS console's ``[ERROR]``, ``[ WARN]``, roslaunch's own) as such,
+    roslaunch's bookkeeping as INFO, and the nodes' chatter (gmapping prints several lines per
+    scan) as DEBUG, to spare the journal on an SD card; the nodes' ROS logs keep it in ROS_HOME.
+    """
+    for pattern, level in LEVELS:
+        if pattern.search(line):
+            return level
+    return logging.INFO if ROSLAUNCH_SAYS.match(line) else logging.DEBUG
