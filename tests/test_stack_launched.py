@@ -113,12 +113,9 @@ def test_switching_modes_leaves_nothing_of_the_previous_stack(stack_env, ros_nod
 
 def test_navigation_without_a_map_uses_the_launch_files_default(stack_env, ros_node, tmp_path, monkeypatch):
     monkeypatch.setenv("FLASK_MOVE_SERVER_MAP", save_map(tmp_path, "default", 17, 9))
-    stack = make_stack(stack_env)
-    try:
+    with make_stack(stack_env) as stack:
         stack.start("navigation", None)
         assert served_map_width(ros_node) == 17
-    finally:
-        stack.close()
     assert nothing_left(stack_env["ROS_MASTER_URI"])
 
 

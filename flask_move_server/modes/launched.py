@@ -158,6 +158,12 @@ class LaunchedStack:
             self._closed = True
         self.stop()
 
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
     @property
     def running(self):
         """True while a stack started here is up (it may be dying: see ``on_exit``)."""

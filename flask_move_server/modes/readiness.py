@@ -49,10 +49,13 @@ def check_launch(roslaunch_args):
 
     Returns the process names (``ns/name``, as roslaunch prints them) of the nodes that respawn.
     """
-    import roslaunch.config
-    import roslaunch.core
-    import roslaunch.rlutil
-
+    try:
+        import roslaunch.config
+        import roslaunch.core
+        import roslaunch.rlutil
+    except ImportError:
+        raise StackFailed("roslaunch is not installed: sudo apt install {} (or python3-roslaunch on Debian)".format(
+            apt_package("roslaunch")))
     logging.getLogger("roslaunch").setLevel(logging.WARNING)  # its loader logs every node it adds
 
     files = [a for a in roslaunch_args if not a.startswith("-") and ":=" not in a]
