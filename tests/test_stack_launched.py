@@ -228,7 +228,7 @@ ROSLAUNCH_LINE = "ERROR: cannot launch node of type [gmapping/slam_gmapping]: gm
 def test_roslaunchs_own_cannot_launch_line_reads_as_an_apt_command():
     proc = child.StackProcess(["true"])
     proc._note(ROSLAUNCH_LINE.strip())
-    assert proc.events == [["cannot_launch", "gmapping", "slam_gmapping", "gmapping"]]
+    assert list(proc.events) == [["cannot_launch", "gmapping", "slam_gmapping", "gmapping"]]
     assert readiness.cannot_launch_message(*proc.events[0][1:]) == (
         "gmapping is not installed: sudo apt install ros-noetic-gmapping")
     assert readiness.cannot_launch_message("move_base", "move_base", "Cannot locate node of type [move_base]") == (

@@ -39,8 +39,9 @@ class StackProcess:
         self.env = dict(env if env is not None else os.environ, PYTHONUNBUFFERED="1")
         self.env[children.MARKER] = self.marker
         self.lines = collections.deque(maxlen=keep_lines)
-        # In order: ["died", node, exit code, log file, its last line], ["cannot_launch", pkg, type, why]
-        self.events = []
+        # In order: ["died", node, exit code, log file, its last line], ["cannot_launch", pkg, type, why].
+        # Bounded: a respawning lidar driver with its cable out dies every few seconds, for days.
+        self.events = collections.deque(maxlen=50)
         self.changed = threading.Condition()
         self.process = None
         self._reader = None
