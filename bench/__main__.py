@@ -21,6 +21,7 @@ BENCHMARKS = [
     ("goals", "bench_goals.py", ["--goals", "30", "--burst", "100"]),
     ("teleop", "bench_teleop.py", ["--requests", "100", "--seconds", "4"]),
     ("sim", "bench_sim.py", ["--repeat", "3", "--drive-seconds", "8"]),
+    ("stack", "bench_stack.py", ["--repeat", "2"]),
     ("abuse", "bench_abuse.py", ["--connections", "100", "--rounds", "10", "--signals", "2",
                                  "--storm-seconds", "4"]),
     ("sim_modes", "bench_sim_modes.py", ["--switches", "2", "--drive-seconds", "30"]),

@@ -220,12 +220,9 @@ class Server:
         if kind == "sim":
             return getattr(self._simulation, "stacks", None)  # modes/simulated.py, built by the Simulation
         if kind == "roslaunch":
-            try:
-                from flask_move_server.modes.launched import LaunchedStack
-            except ImportError:  # a build without the roslaunch backend: behave as modes.stack: none
-                log.warning("modes.stack roslaunch: this build has no roslaunch backend")
-                return None
-            return LaunchedStack(self.config)
+            from flask_move_server.modes.launched import LaunchedStack
+
+            return self._stack.enter_context(LaunchedStack.from_config(self.config))  # closed after the manager
         return None
 
     def _watch_estop_button(self, stack, estop):

@@ -172,3 +172,35 @@ def test_an_updated_unit_is_replaced(installed):
     assert "roscore.service" in out
     with open(unit, encoding="utf-8") as f, open(os.path.join(ROOT, "systemd/roscore.service"), encoding="utf-8") as g:
         assert f.read() == g.read()
+
+
+def installer_module():
+    """scripts/install imported (it has no .py suffix), for its pure helpers."""
+    import importlib.machinery
+    import importlib.util
+
+    loader = importlib.machinery.SourceFileLoader("flask_move_server_install", INSTALL)
+    module = importlib.util.module_from_spec(importlib.util.spec_from_loader(loader.name, loader))
+    loader.exec_module(module)
+    return module
+
+
+def test_the_server_owns_the_stack_so_an_upgrade_retires_the_navigation_unit(installed):
+    root, _ = installed
+    with open(os.path.join(str(root), "etc/flask-move-server/robot.yaml"), encoding="utf-8") as f:
+        commands = installer_module().systemctl_commands(f.read())
+    enabled = [c for c in commands if c[1] == "enable"]
+    assert enabled == [["systemctl", "enable", "roscore.service", "flask-move-server.service"]]
+    assert ["systemctl", "disable", "--now", "robot-navigation.service", "robot-mapping.service"] in commands
+    assert commands[-1] == ["systemctl", "restart", "flask-move-server.service"]
+
+
+@pytest.mark.parametrize("text", ["modes:\n  # who runs it\n  start_timeout: 5\n  stack: none   # mine\n",
+                                  "modes: {stack: none, restarts: 1}\n"])
+def test_with_stack_none_the_operators_navigation_unit_is_left_alone(text):
+    commands = installer_module().systemctl_commands(text)
+    assert not any("robot-navigation.service" in c for c in commands)
+
+
+def test_a_stack_key_of_another_section_is_not_taken_for_modes():
+    assert installer_module().modes_stack("maps:\n  stack: none\nmodes:\n  restarts: 1\n") == "auto"

@@ -1,8 +1,10 @@
 """The launch files under real roslaunch: args resolve, rosparam files load, nodes are unique.
 
 The navigation stack (gmapping, amcl, move_base, map_server, rplidar_ros, hector_mapping, rviz)
-is not packaged by Debian: bare package.xml stand-ins in tests/stub_packages let roslaunch and
-rospack resolve ``pkg=`` and ``$(find ...)`` exactly as on the robot, where the real ones are.
+is not packaged by Debian: stand-ins in tests/stub_packages let roslaunch and rospack resolve
+``pkg=`` and ``$(find ...)`` exactly as on the robot, where the real ones are (their tiny nodes,
+run by tests/test_stack_launched.py, publish what the real ones would; tf2_ros's stand-in adds
+static_transform_publisher, which Debian's Python-only tf2_ros lacks).
 server.launch is also started for real and must answer /health.
 """
 

@@ -246,6 +246,15 @@ def test_restore_without_a_usable_state_file_starts_the_default(cfg, kind, expec
         assert "mapping" in status["message"] and starts == []
 
 
+def test_a_robot_upgraded_with_its_map_saved_as_map_navigates_on_it(cfg):
+    """Before the server ran the stack, operators saved maps/map.yaml for navigation.launch: a robot
+    upgraded with nothing remembered navigates on it (and its dock), not idle with its map unused."""
+    yaml_path = save_map(cfg, "map")
+    status, starts = _restored(cfg)
+    assert (status["mode"], status["map"], status["state"]) == ("navigation", "map", "running")
+    assert starts == [("navigation", yaml_path)]
+
+
 def test_restore_of_a_map_that_is_gone_is_idle_saying_so(cfg):
     status, starts = _restored(cfg, '{"mode": "navigation", "map": "flat"}')
     assert status["mode"] == "idle" and "'flat'" in status["message"] and "gone" in status["message"]

@@ -121,3 +121,19 @@ def test_exec_stop_post_names_what_to_install_without_gpio(root):
                            os.path.join(str(root), "etc/flask-move-server/robot.yaml")],
                           capture_output=True, text=True, timeout=60)
     assert proc.returncode == 1 and "RPi.GPIO" in proc.stderr
+
+
+def test_server_unit_stops_its_stack_with_it():
+    from flask_move_server.config import ModesConfig
+
+    unit = directives("flask-move-server.service")
+    assert unit["KillMode"] == ["control-group"]  # roslaunch and every node live in the unit's cgroup
+    # The server's own stop (SIGINT, stop_timeout, SIGTERM 2 s, SIGKILL) fits before systemd's.
+    assert int(unit["TimeoutStopSec"][0]) >= ModesConfig().stop_timeout + 10
+    assert "roslaunch" not in unit["ExecStart"][0]  # the server starts the stack of the mode asked for
+
+
+def test_manual_stack_units_say_they_are_for_stack_none():
+    for name in ("robot-navigation.service", "robot-mapping.service"):
+        with open(os.path.join(ROOT, "systemd", name), encoding="utf-8") as f:
+            assert "modes.stack: none" in f.read()

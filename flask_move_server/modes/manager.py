@@ -26,7 +26,14 @@ import time
 from flask_move_server.errors import BadMapName, BadRequest, ModesOff, ModeSwitching, StackFailed, UnknownMap, WrongMode
 from flask_move_server.maps.catalogue import MapCatalogue
 from flask_move_server.modes import relocalizing, state_file
-from flask_move_server.modes.targets import IDLE, OUTSIDE, Target, default_target, unusable_map_target
+from flask_move_server.modes.targets import (
+    IDLE,
+    OUTSIDE,
+    UPGRADED_MAP,
+    Target,
+    default_target,
+    unusable_map_target,
+)
 
 log = logging.getLogger(__name__)
 
@@ -300,7 +307,8 @@ class ModeManager:
         remembered, reason = state_file.load(self._config.mode_state_file())
         if remembered is None:
             log.info("no mode to come back to (%s): starting the default", reason)
-            return default_target(self._config.stack_kind())
+            target = default_target(self._config.stack_kind(), self._catalogue.exists(UPGRADED_MAP))
+            return self._target_of(target.mode, target.map, None) if target.map else target
         mode, map_name = remembered
         try:
             return self._target_of(mode, map_name, None)

@@ -28,10 +28,19 @@ class Target:
         return self.mode
 
 
-def default_target(stack_kind):
-    """Nothing remembered: ``--sim`` navigates on its own map (as it always did); a robot waits idle."""
+# The map a robot set up before the server ran its stack navigated on: map_saver's
+# maps/map.yaml, navigation.launch's default, as the earlier docs had operators save it.
+UPGRADED_MAP = "map"
+
+
+def default_target(stack_kind, has_upgraded_map=False):
+    """Nothing remembered: ``--sim`` navigates on its own map (as it always did); a robot navigates on
+    ``maps/map.yaml`` when it has one (a robot upgraded from running navigation.launch itself), else
+    waits idle."""
     if stack_kind == "sim":
         return Target("navigation")
+    if has_upgraded_map:
+        return Target("navigation", map=UPGRADED_MAP)
     return Target("idle", note=IDLE)
 
 

@@ -10,12 +10,12 @@ they read the sim backend the base controller drives.
 import logging
 import os
 import shutil
-import signal
 import subprocess
 import sys
 import time
 from urllib.parse import urlparse
 
+from flask_move_server.children import die_with_parent
 from flask_move_server.errors import ConfigError
 from flask_move_server.geometry import Pose2D
 from flask_move_server.ros import master
@@ -117,7 +117,7 @@ class OwnMaster:
         rosmaster = shutil.which("rosmaster") or "rosmaster"
         process = subprocess.Popen([rosmaster, "--core", "-p", str(parsed.port or 11311)],
                                    stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
-                                   start_new_session=True, preexec_fn=_die_with_parent)
+                                   start_new_session=True, preexec_fn=die_with_parent)
         own = cls(uri, process)
         own._wait_ready(timeout)
         log.info("started a ROS master at %s (pid %d); it stops with the server", uri, process.pid)
@@ -143,12 +143,3 @@ class OwnMaster:
                 self.process.wait()
             log.info("stopped the ROS master at %s", self.uri)
 
-
-def _die_with_parent():
-    """In the child: get SIGTERM if the server dies without closing (Linux), so no master is left behind."""
-    try:
-        import ctypes
-
-        ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, signal.SIGTERM)  # PR_SET_PDEATHSIG
-    except (OSError, AttributeError):
-        pass
