@@ -1,0 +1,78 @@
+"""Map files a user drops into the maps folder by hand, whatever they hold: a clear answer, never a hang.
+
+A map YAML's ``image`` may name any file. The real web app, maps folder and
+waypoint store on temporary files; the mode manager and the live map are the
+stand-ins of tests/fake_maps.py.
+"""
+
+import os
+import threading
+
+import pytest
+
+from flask_move_server.events import EventBus
+from flask_move_server.maps.catalogue import MapCatalogue
+from flask_move_server.maps.service import MapService
+from flask_move_server.web import create_app
+from tests.fake_maps import FakeMapSource, FakeModes
+from tests.fake_robot import FakeRobot
+from tests.test_maps_web import room
+
+
+@pytest.fixture
+def folder(robot_config):
+    path = robot_config.maps_folder()
+    os.makedirs(path, exist_ok=True)
+    return path
+
+
+@pytest.fixture
+def client(robot_config, store, folder):
+    events = EventBus()
+    service = MapService(MapCatalogue(folder), store, FakeMapSource(room()), modes=FakeModes(events, mode="idle"),
+                         events=events)
+    return create_app(robot_config, FakeRobot(), store, events=events, maps=service).test_client()
+
+
+def drop_map(folder, name, image):
+    with open(os.path.join(folder, name + ".yaml"), "w") as f:
+        f.write("image: {}\nresolution: 0.05\norigin: [0.0, 0.0, 0.0]\n".format(image))
+
+
+def test_a_map_whose_image_is_a_fifo_is_listed_with_its_problem_not_a_stuck_worker(client, folder):
+    fifo = os.path.join(folder, "pipe.pgm")
+    os.mkfifo(fifo)
+    drop_map(folder, "pipe", "pipe.pgm")
+    answers = {}
+
+    def ask():
+        answers["list"] = client.get("/maps")
+        answers["image"] = client.get("/maps/pipe/image")
+
+    asking = threading.Thread(target=ask, daemon=True)
+    asking.start()
+    asking.join(10)
+    if asking.is_alive():  # free the stuck reader before failing: open the FIFO's other end
+        os.close(os.open(fifo, os.O_WRONLY | os.O_NONBLOCK))
+        pytest.fail("reading a map whose image is a FIFO never answered")
+    listed = answers["list"].get_json()["maps"]
+    assert listed[0]["name"] == "pipe" and "not a regular file" in listed[0]["problem"]
+    image = answers["image"]
+    assert image.status_code == 503 and "not a regular file" in image.get_json()["message"]
+
+
+def test_an_image_declaring_more_cells_than_a_map_may_have_is_refused_unread(client, folder):
+    with open(os.path.join(folder, "vast.pgm"), "wb") as f:
+        f.write(b"P5\n7000 7000\n255\n")
+        f.truncate(17 + 7000 * 7000)  # sparse: a whole image, costing no disk
+    drop_map(folder, "vast", "vast.pgm")
+    answer = client.get("/maps/vast/image")
+    assert answer.status_code == 503, answer.status_code
+    assert "7000 x 7000" in answer.get_json()["message"]
+    assert "7000 x 7000" in client.get("/maps/vast").get_json()["problem"]
+
+
+def test_a_map_pointing_outside_the_folder_at_a_non_image_says_so(client, folder):
+    drop_map(folder, "passwd", "/etc/passwd")
+    answer = client.get("/maps/passwd/image")
+    assert answer.status_code == 503 and "not a PGM image" in answer.get_json()["message"]
