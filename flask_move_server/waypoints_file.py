@@ -107,6 +107,23 @@ def _describe_process(pid):
     return "process {} ({})".format(pid, " ".join(words)[:60])
 
 
+def new_file_mode():
+    """The mode ``open()`` gives a new file under this process's umask.
+
+    mkstemp makes its files 0600 whatever the umask; a file it makes that stays
+    (a map, a map's waypoints) gets this instead, so the service's ``UMask=0027``
+    lets its group (the user copying a map off the robot) read it, as map_saver's would.
+    """
+    try:
+        with open("/proc/self/status", encoding="ascii") as f:
+            for line in f:
+                if line.startswith("Umask:"):
+                    return 0o666 & ~int(line.split()[1], 8)
+    except (OSError, ValueError, IndexError):
+        pass
+    return 0o644
+
+
 def atomic_write(path, text, backup_text=None):
     """Write ``text`` to ``path`` so that a crash leaves the old or the new file, whole.
 
@@ -121,8 +138,7 @@ def atomic_write(path, text, backup_text=None):
             f.write(text)
             f.flush()
             os.fsync(f.fileno())
-        if os.path.exists(path):
-            os.chmod(tmp, os.stat(path).st_mode & 0o7777)
+        os.chmod(tmp, os.stat(path).st_mode & 0o7777 if os.path.exists(path) else new_file_mode())
         if backup_text is not None:
             _write_backup(path, backup_text)
         os.replace(tmp, path)

@@ -1,11 +1,13 @@
-"""Map files a user drops into the maps folder by hand, whatever they hold: a clear answer, never a hang.
+"""The maps folder as users meet it: files dropped in by hand, files copied off the robot.
 
-A map YAML's ``image`` may name any file. The real web app, maps folder and
+A map YAML's ``image`` may name any file: a clear answer, never a hang. Saved files are
+readable as the umask allows, like map_saver's. The real web app, maps folder and
 waypoint store on temporary files; the mode manager and the live map are the
 stand-ins of tests/fake_maps.py.
 """
 
 import os
+import stat
 import threading
 
 import pytest
@@ -27,9 +29,14 @@ def folder(robot_config):
 
 
 @pytest.fixture
-def client(robot_config, store, folder):
+def mode():
+    return "idle"
+
+
+@pytest.fixture
+def client(robot_config, store, folder, mode):
     events = EventBus()
-    service = MapService(MapCatalogue(folder), store, FakeMapSource(room()), modes=FakeModes(events, mode="idle"),
+    service = MapService(MapCatalogue(folder), store, FakeMapSource(room()), modes=FakeModes(events, mode=mode),
                          events=events)
     return create_app(robot_config, FakeRobot(), store, events=events, maps=service).test_client()
 
@@ -76,3 +83,17 @@ def test_a_map_pointing_outside_the_folder_at_a_non_image_says_so(client, folder
     drop_map(folder, "passwd", "/etc/passwd")
     answer = client.get("/maps/passwd/image")
     assert answer.status_code == 503 and "not a PGM image" in answer.get_json()["message"]
+
+
+@pytest.fixture
+def umask_0027():
+    old = os.umask(0o027)  # the systemd unit's UMask
+    yield
+    os.umask(old)
+
+
+@pytest.mark.parametrize("mode", ["mapping"])
+def test_a_saved_map_and_its_waypoints_are_readable_by_the_group_as_the_umask_allows(client, folder, umask_0027):
+    assert client.post("/maps", json={"name": "flat"}).status_code == 201
+    modes = {f: stat.S_IMODE(os.stat(os.path.join(folder, f)).st_mode) for f in os.listdir(folder)}
+    assert modes == {"flat.yaml": 0o640, "flat.pgm": 0o640, "flat.waypoints.yaml": 0o640}
