@@ -7,14 +7,19 @@ stand-ins of tests/fake_maps.py.
 """
 
 import os
+import re
 import stat
+import subprocess
 import threading
 
 import pytest
 
+from flask_move_server.errors import WaypointFileError
 from flask_move_server.events import EventBus
 from flask_move_server.maps.catalogue import MapCatalogue
 from flask_move_server.maps.service import MapService
+from flask_move_server.waypoint_store import WaypointStore
+from flask_move_server.waypoints import make_waypoint
 from flask_move_server.web import create_app
 from tests.fake_maps import FakeMapSource, FakeModes
 from tests.fake_robot import FakeRobot
@@ -97,3 +102,26 @@ def test_a_saved_map_and_its_waypoints_are_readable_by_the_group_as_the_umask_al
     assert client.post("/maps", json={"name": "flat"}).status_code == 201
     modes = {f: stat.S_IMODE(os.stat(os.path.join(folder, f)).st_mode) for f in os.listdir(folder)}
     assert modes == {"flat.yaml": 0o640, "flat.pgm": 0o640, "flat.waypoints.yaml": 0o640}
+
+
+def test_the_restore_command_for_a_broken_waypoints_file_of_a_map_with_a_space_works_in_a_shell(tmp_path):
+    path = tmp_path / "my flat.waypoints.yaml"
+    path.write_text("waypoints:\n  dock: [0.0, 0.0, 0.0]\n")
+    store = WaypointStore(str(path))
+    store.put(make_waypoint("porch", 1, 1, 1))  # the .bak: the dock alone
+    path.write_text("waypoints: [[[\n")  # a bad hand edit
+    with pytest.raises(WaypointFileError) as err:
+        store.put(make_waypoint("hall", 2, 2, 0))
+    command = re.search(r"\((cp .*)\)", str(err.value)).group(1)
+    subprocess.run(["sh", "-c", command], check=True, cwd=str(tmp_path / ".."))
+    assert "dock" in path.read_text() and "[[[" not in path.read_text()
+
+
+def test_no_restore_command_is_offered_without_a_backup(tmp_path):
+    path = tmp_path / "my flat.waypoints.yaml"
+    path.write_text("waypoints:\n  dock: [0.0, 0.0, 0.0]\n")
+    store = WaypointStore(str(path))
+    path.write_text("waypoints: [[[\n")
+    with pytest.raises(WaypointFileError) as err:
+        store.put(make_waypoint("hall", 2, 2, 0))
+    assert "cp " not in str(err.value) and "waypoints: {}" in str(err.value)
