@@ -126,7 +126,7 @@ class ModeManager:
             if not os.path.isfile(yaml_path):
                 raise self._catalogue_unknown(map_name)
         if isinstance(pose, str):
-            pose = relocalizing.waypoint_pose(self._waypoints_path(map_name), pose)
+            pose = relocalizing.waypoint_pose(self._waypoints_path(map_name), pose, map_name)
         return Target(mode, map_name, yaml_path, pose)
 
     def _catalogue_unknown(self, name):
