@@ -125,3 +125,19 @@ def test_no_restore_command_is_offered_without_a_backup(tmp_path):
     with pytest.raises(WaypointFileError) as err:
         store.put(make_waypoint("hall", 2, 2, 0))
     assert "cp " not in str(err.value) and "waypoints: {}" in str(err.value)
+
+
+@pytest.mark.parametrize("method, path", [
+    ("GET", "/maps/a%2Fb"), ("DELETE", "/maps/..%2Fwaypoints"), ("PATCH", "/maps/a%0Ab"), ("GET", "/maps/a%2Fb/image"),
+])
+def test_a_slash_or_line_break_in_a_map_name_is_a_bad_map_name_not_no_such_endpoint(client, method, path):
+    answer = client.open(path, method=method, json={"name": "new"} if method == "PATCH" else None)
+    assert answer.status_code == 400 and answer.get_json()["error"] == "bad_map_name", answer.get_json()
+
+
+def test_a_map_name_slash_image_still_serves_the_image(client, folder):
+    with open(os.path.join(folder, "flat.pgm"), "wb") as f:
+        f.write(b"P5\n2 2\n255\n" + bytes([254, 0, 205, 254]))
+    drop_map(folder, "flat", "flat.pgm")
+    assert client.get("/maps/flat/image").mimetype == "image/png"
+    assert client.get("/maps/flat").get_json()["width"] == 2
