@@ -15,6 +15,7 @@ import fcntl
 import glob
 import logging
 import os
+import stat
 import tempfile
 import time
 
@@ -34,15 +35,35 @@ def stamp(path):
     return (st.st_ino, st.st_size, st.st_mtime_ns, st.st_ctime_ns)
 
 
+MAX_TEXT = 4 * 1024 * 1024  # characters: far beyond any waypoints or mode file, far below a Pi's memory
+
+
 def read(path):
-    """The text of ``path``, or None when it does not exist."""
+    """The text of ``path``, or None when it does not exist.
+
+    The files read here (waypoints, a map's waypoints, mode.json) are edited by hand, so
+    they may be anything: a FIFO or a device such as ``/dev/zero`` (opened without
+    blocking and refused, never a hung request or an endless read), or far too big.
+    """
     try:
-        with open(path, encoding="utf-8") as f:
-            return f.read()
+        fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0))
     except FileNotFoundError:
         return None
-    except (OSError, UnicodeDecodeError) as exc:
+    except OSError as exc:
         raise WaypointFileError("cannot read {}: {}".format(path, exc))
+    try:
+        with os.fdopen(fd, encoding="utf-8") as f:
+            if not stat.S_ISREG(os.fstat(fd).st_mode):
+                raise WaypointFileError("cannot read {}: not a regular file".format(path))
+            text = f.read(MAX_TEXT + 1)
+    except (OSError, UnicodeDecodeError) as exc:
+        if isinstance(exc, WaypointFileError):
+            raise
+        raise WaypointFileError("cannot read {}: {}".format(path, exc))
+    if len(text) > MAX_TEXT:
+        raise WaypointFileError("cannot read {}: more than {} characters, too big for a file of "
+                                "this kind".format(path, MAX_TEXT))
+    return text
 
 
 @contextlib.contextmanager

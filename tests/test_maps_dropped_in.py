@@ -10,6 +10,7 @@ import os
 import re
 import stat
 import subprocess
+import sys
 import threading
 
 import pytest
@@ -18,6 +19,7 @@ from flask_move_server.errors import WaypointFileError
 from flask_move_server.events import EventBus
 from flask_move_server.maps.catalogue import MapCatalogue
 from flask_move_server.maps.service import MapService
+from flask_move_server.modes import state_file
 from flask_move_server.waypoint_store import WaypointStore
 from flask_move_server.waypoints import make_waypoint
 from flask_move_server.web import create_app
@@ -141,3 +143,47 @@ def test_a_map_name_slash_image_still_serves_the_image(client, folder):
     drop_map(folder, "flat", "flat.pgm")
     assert client.get("/maps/flat/image").mimetype == "image/png"
     assert client.get("/maps/flat").get_json()["width"] == 2
+
+
+def _in_time(work, seconds=10):
+    """``work()``'s result, or None if it did not answer within ``seconds`` (the thread is left hanging)."""
+    answers = []
+    thread = threading.Thread(target=lambda: answers.append(work()), daemon=True)
+    thread.start()
+    thread.join(seconds)
+    return answers[0] if answers else None
+
+
+def _unblock(fifo):
+    os.close(os.open(fifo, os.O_WRONLY | os.O_NONBLOCK))  # a stuck reader (without the fix) gets EOF
+
+
+def test_a_maps_waypoints_file_that_is_a_fifo_neither_hangs_the_list_nor_the_mode_state(client, folder, tmp_path):
+    with open(os.path.join(folder, "flat.pgm"), "wb") as f:
+        f.write(b"P5\n2 2\n255\n" + bytes([254, 0, 205, 254]))
+    drop_map(folder, "flat", "flat.pgm")
+    fifo = os.path.join(folder, "flat.waypoints.yaml")
+    os.mkfifo(fifo)
+    listed = _in_time(lambda: client.get("/maps"))
+    if listed is None:
+        _unblock(fifo)
+        pytest.fail("GET /maps never answered: it read a FIFO")
+    assert listed.get_json()["maps"][0]["waypoints"] == 0
+    state = str(tmp_path / "mode.json")
+    os.mkfifo(state)
+    remembered = _in_time(lambda: state_file.load(state))
+    if remembered is None:
+        _unblock(state)
+        pytest.fail("reading the mode state file never answered: it read a FIFO")
+    assert remembered == (None, "cannot read {}: not a regular file".format(state))
+
+
+def test_a_mode_state_file_linked_to_dev_zero_is_refused_not_read_forever(tmp_path):
+    state = tmp_path / "mode.json"
+    state.symlink_to("/dev/zero")
+    # capped at 2 GiB: without the fix this reads until MemoryError, never the machine's memory
+    code = ("import resource; resource.setrlimit(resource.RLIMIT_AS, (2 << 30, 2 << 30))\n"
+            "from flask_move_server.modes import state_file; print(state_file.load({!r}))".format(str(state)))
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    assert done.returncode == 0, done.stderr[-300:]
+    assert "not a regular file" in done.stdout
