@@ -12,11 +12,13 @@ import stat
 import subprocess
 import sys
 import threading
+import time
 
 import pytest
 
 from flask_move_server.errors import WaypointFileError
 from flask_move_server.events import EventBus
+from flask_move_server.maps import render
 from flask_move_server.maps.catalogue import MapCatalogue
 from flask_move_server.maps.service import MapService
 from flask_move_server.modes import state_file
@@ -187,3 +189,30 @@ def test_a_mode_state_file_linked_to_dev_zero_is_refused_not_read_forever(tmp_pa
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
     assert done.returncode == 0, done.stderr[-300:]
     assert "not a regular file" in done.stdout
+
+
+def test_images_asked_for_at_once_are_loaded_and_rendered_one_at_a_time_and_once_per_version():
+    cache, other = render.ImageCache(), render.ImageCache()
+    inside, most, made = [0], [0], []
+    lock = threading.Lock()
+
+    def make(version):
+        def work():
+            with lock:
+                inside[0] += 1
+                most[0] = max(most[0], inside[0])
+                made.append(version)
+            time.sleep(0.2)  # a big map's load and render; the others ask meanwhile
+            with lock:
+                inside[0] -= 1
+            return version
+        return work
+
+    asks = [(cache, "v1")] * 6 + [(other, "v2")] * 2
+    threads = [threading.Thread(target=lambda c=c, v=v: c.image(v, make(v))) for c, v in asks]
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        thread.join(30)
+    assert sorted(made) == ["v1", "v2"] and most[0] == 1
+    assert cache.get("v1") == "v1" and other.get("v2") == "v2"
