@@ -47,7 +47,7 @@ def follow_goal(client, goal_id, name, timeout=None):
         while True:
             nav = client.get("/status")["navigation"]
             if goal_id is not None and nav.get("goal_id") not in (None, goal_id):
-                nav = dict(nav, state="canceled")  # a newer goal replaced ours
+                nav = dict(nav, state="canceled", message=None)  # a newer goal replaced ours
             state = nav.get("state")
             if state == "succeeded":
                 live.end()
@@ -55,7 +55,8 @@ def follow_goal(client, goal_id, name, timeout=None):
                 return ExitStatus.OK
             if state != "active":
                 live.end()
-                raise ClientError(failure_sentence(state, name), _GOAL_EXITS.get(state, ExitStatus.ABORTED))
+                said = nav.get("message") or failure_sentence(state, name)  # as the server's /goto with wait
+                raise ClientError(said, _GOAL_EXITS.get(state, ExitStatus.ABORTED))
             live.show(progress(name, nav))
             if deadline is not None and time.monotonic() >= deadline:
                 live.end()

@@ -22,3 +22,14 @@ def failure_sentence(state, target=None):
     """
     to = " to {!r}".format(target) if target else ""
     return _SENTENCES.get(state, _SENTENCES["aborted"]).format(to=to)
+
+
+def said_sentence(state, target, said):
+    """The sentence for a goal that move_base ended in ``state`` giving its own reason ``said``.
+
+    move_base's words replace the guess ("no path was found or the robot got stuck"): a goal
+    ended because the navigation stack was stopped for a mode switch says so.
+    """
+    to = " to {!r}".format(target) if target else ""
+    verb = "rejected" if state == "rejected" else "aborted"
+    return "move_base {} the goal{}: {}{}".format(verb, to, said, "" if said.endswith((".", "!", "?")) else ".")

@@ -14,6 +14,7 @@ deletion: only ``waypoints: {}`` clears them. The file plumbing lives in
 import contextlib
 import logging
 import os
+import shlex
 import threading
 
 from flask_move_server import waypoints_file
@@ -168,9 +169,8 @@ class WaypointStore:
             log.error("%s; still using the %d waypoints loaded before", exc, len(self._waypoints))
             if strict:
                 raise WaypointFileError(
-                    "{}; nothing was changed. Fix the file, or put back the version before the last change "
-                    "(cp {p}.bak {p}), or write 'waypoints: {{}}' to it to delete every waypoint on "
-                    "purpose.".format(exc, p=self.path)
+                    "{}; nothing was changed. Fix the file,{} or write 'waypoints: {{}}' to it to delete every "
+                    "waypoint on purpose.".format(exc, _restore_hint(self.path))
                 )
             return
         if self._stamp is not None:
@@ -215,6 +215,14 @@ def _why_lost(text, entries, loaded):
     if entries is None:
         return "holds no waypoints and does not say 'waypoints: {}'"
     return None
+
+
+def _restore_hint(path):
+    """The shell command putting back ``path.bak``, quoted (a map's name may hold spaces); "" with no backup."""
+    if not os.path.isfile(path + ".bak"):
+        return ""
+    return " or put back the version before the last change ({}),".format(
+        " ".join(["cp", shlex.quote(path + ".bak"), shlex.quote(path)]))
 
 
 def _count_backup(path):

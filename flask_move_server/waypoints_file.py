@@ -15,6 +15,7 @@ import fcntl
 import glob
 import logging
 import os
+import stat
 import tempfile
 import time
 
@@ -34,15 +35,35 @@ def stamp(path):
     return (st.st_ino, st.st_size, st.st_mtime_ns, st.st_ctime_ns)
 
 
+MAX_TEXT = 4 * 1024 * 1024  # characters: far beyond any waypoints or mode file, far below a Pi's memory
+
+
 def read(path):
-    """The text of ``path``, or None when it does not exist."""
+    """The text of ``path``, or None when it does not exist.
+
+    The files read here (waypoints, a map's waypoints, mode.json) are edited by hand, so
+    they may be anything: a FIFO or a device such as ``/dev/zero`` (opened without
+    blocking and refused, never a hung request or an endless read), or far too big.
+    """
     try:
-        with open(path, encoding="utf-8") as f:
-            return f.read()
+        fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0))
     except FileNotFoundError:
         return None
-    except (OSError, UnicodeDecodeError) as exc:
+    except OSError as exc:
         raise WaypointFileError("cannot read {}: {}".format(path, exc))
+    try:
+        with os.fdopen(fd, encoding="utf-8") as f:
+            if not stat.S_ISREG(os.fstat(fd).st_mode):
+                raise WaypointFileError("cannot read {}: not a regular file".format(path))
+            text = f.read(MAX_TEXT + 1)
+    except (OSError, UnicodeDecodeError) as exc:
+        if isinstance(exc, WaypointFileError):
+            raise
+        raise WaypointFileError("cannot read {}: {}".format(path, exc))
+    if len(text) > MAX_TEXT:
+        raise WaypointFileError("cannot read {}: more than {} characters, too big for a file of "
+                                "this kind".format(path, MAX_TEXT))
+    return text
 
 
 @contextlib.contextmanager
@@ -105,6 +126,23 @@ def _describe_process(pid):
     if words and words[0].startswith("python") and len(words) > 1 and not words[1].startswith("-"):
         words = words[1:]  # a console script: 'record-waypoints', not 'python3 record-waypoints'
     return "process {} ({})".format(pid, " ".join(words)[:60])
+
+
+def new_file_mode():
+    """The mode ``open()`` gives a new file under this process's umask.
+
+    mkstemp makes its files 0600 whatever the umask; a file it makes that stays
+    (a map, a map's waypoints) gets this instead, so the service's ``UMask=0027``
+    lets its group (the user copying a map off the robot) read it, as map_saver's would.
+    """
+    try:
+        with open("/proc/self/status", encoding="ascii") as f:
+            for line in f:
+                if line.startswith("Umask:"):
+                    return 0o666 & ~int(line.split()[1], 8)
+    except (OSError, ValueError, IndexError):
+        pass
+    return 0o644
 
 
 def atomic_write(path, text, backup_text=None):
@@ -173,20 +211,3 @@ def fsync_dir(directory):
         os.fsync(fd)
     finally:
         os.close(fd)
-
-
-def new_file_mode():
-    """The mode a new file gets from ``open()`` here (0o666 less the umask), as editors and map_saver give it.
-
-    ``mkstemp`` makes its files 0o600: a waypoints file or map written through it could not be read
-    by the operator's other accounts (``scp`` as pi, a backup job). Read from /proc, because
-    ``os.umask`` can only be read by setting it, which races the other threads.
-    """
-    try:
-        with open("/proc/self/status", encoding="ascii") as f:
-            for line in f:
-                if line.startswith("Umask:"):
-                    return 0o666 & ~int(line.split()[1], 8)
-    except (OSError, ValueError):
-        pass
-    return 0o644

@@ -346,14 +346,3 @@ def test_a_stored_maps_version_changes_when_it_is_saved_again(maps):
     assert maps.version("flat") == before
     maps.save("flat", small_grid([0] * 8), overwrite=True)
     assert maps.version("flat") != before
-
-
-def test_a_saved_map_is_readable_by_the_operators_other_accounts(tmp_path):
-    """map_saver's files are 0644 under the usual umask; a copy off the robot as another user works."""
-    old = os.umask(0o022)
-    try:
-        yaml_path = mapfile.save(str(tmp_path), "flat", small_grid())
-    finally:
-        os.umask(old)
-    for path in (yaml_path, str(tmp_path / "flat.pgm")):
-        assert os.stat(path).st_mode & 0o777 == 0o644, path

@@ -321,3 +321,26 @@ def test_a_move_base_that_does_not_answer_is_said_in_the_message(cfg):
         assert modes.status()["message"].endswith("; move_base does not answer this server's goals yet (GET /health)")
     finally:
         modes.close()
+
+
+def test_a_pose_name_missing_from_the_map_switched_to_names_that_map_and_its_waypoints(cfg, harness):
+    save_map(cfg, "flat", "waypoints:\n  dock: [0.5, -1.0, 1.57]\n  hall: [3.0, 4.0, 0.0]\n")
+    # /waypoints serves the single file now, which may well hold a "kitchen": the error must say whose it is not
+    with pytest.raises(UnknownWaypoint) as error:
+        harness.modes.switch("navigation", "flat", "kitchen")
+    assert str(error.value) == ("The map 'flat' has no waypoint named 'kitchen'. A pose's name is one of the "
+                                "map's own waypoints (it has 'dock', 'hall').")
+
+
+def test_a_pose_sent_while_a_switch_is_under_way_is_refused_not_lost(cfg, harness):
+    save_map(cfg, "flat", "waypoints:\n  dock: [0.5, -1.0, 1.57]\n")
+    harness.stack.gate.clear()
+    harness.modes.switch("navigation", "flat")
+    assert harness.stack.starting.wait(5)
+    with pytest.raises(ModeSwitching, match="give the pose with the switch"):
+        harness.modes.set_pose(Pose2D(2.0, 1.0, 0.0))
+    harness.stack.gate.set()
+    assert harness.modes.wait(5)
+    assert harness.poses == [Pose2D(0.5, -1.0, 1.57)]  # the dock, as the running message says
+    harness.modes.set_pose(Pose2D(2.0, 1.0, 0.0))
+    assert harness.poses[-1] == Pose2D(2.0, 1.0, 0.0)

@@ -270,3 +270,19 @@ def test_switching_leaves_no_thread_behind(parts):
 
 def _threads():
     return sum(1 for t in threading.enumerate() if t.is_alive())
+
+
+def test_a_goto_waiting_through_a_switch_says_move_base_gave_up_because_the_stack_stopped(parts):
+    parts.stacks.start("navigation")
+    wait_for(parts.robot.navigator.server_ready, timeout=15, message="the navigator to see move_base")
+    answers = []
+    waiting = threading.Thread(target=lambda: answers.append(
+        parts.client.post("/goto", json={"x": 8.4, "y": 0.9, "yaw": 0.0, "wait": 60})))
+    waiting.start()
+    wait_for(lambda: parts.pose().distance_to(Pose2D(0.0, 0.0, 0.0)) > 0.3, timeout=30, message="the robot moving")
+    parts.stacks.start("mapping")
+    waiting.join(30)
+    body = answers[0].get_json()
+    assert answers[0].status_code == 409 and body["error"] == "navigation_failed", body
+    assert body["message"] == "move_base aborted the goal: the navigation stack stopped.", body
+    assert parts.client.get("/status").get_json()["navigation"]["message"] == body["message"]

@@ -149,8 +149,7 @@ class MapCatalogue:
 
     def _count_waypoints(self, name):
         try:
-            with open(self.waypoints_path(name), encoding="utf-8") as f:
-                return len(entries_of(f.read(), source=name) or {})
+            return len(entries_of(waypoints_file.read(self.waypoints_path(name)) or "", source=name) or {})
         except (OSError, ValueError):
             return 0
 

@@ -169,9 +169,7 @@ def load(yaml_path):
     meta = occupancy.read_meta(yaml_path, rotated_ok=True)
     image_path = os.path.join(os.path.dirname(os.path.abspath(yaml_path)), meta["image"])
     try:
-        with open(image_path, "rb") as f:
-            data = f.read()
-        width, height, cells = _cells_of_image(data, meta)
+        width, height, cells = _cells_of_image(occupancy.read_image(image_path), meta)
     except OSError as exc:
         raise ConfigError(yaml_path, "image", "cannot read {}: {}".format(image_path, exc.strerror))
     except ValueError as exc:
@@ -195,8 +193,6 @@ def _cells_of_image(data, meta):
 def image_size(yaml_path, image):
     """(width, height) from the header of the map's PGM, without reading its pixels."""
     path = os.path.join(os.path.dirname(os.path.abspath(yaml_path)), image)
-    with open(path, "rb") as f:
-        head = f.read(4096)
-    width, height, _, _ = occupancy.pgm_header(head)
+    width, height, _, _ = occupancy.pgm_header(occupancy.read_image(path, head_only=True))
     return width, height
 

@@ -129,7 +129,15 @@ def grid_version(grid):
 
 
 class ImageCache:
-    """The last few rendered images, by version: a repeat request costs a look-up, not a render."""
+    """The last few rendered images, by version: a repeat request costs a look-up, not a render.
+
+    One map is loaded and rendered at a time, across every cache: each can take ~80 MB for a
+    gmapping canvas, so six workers asking at once for images not rendered yet (a page and its
+    reloads, a script) would need six times that on a Pi. A request that waited for the render
+    of the same version finds it cached.
+    """
+
+    _making = threading.Lock()  # class-wide: one make() at a time
 
     def __init__(self, size=4):
         self.size = size
@@ -142,14 +150,23 @@ class ImageCache:
             return self._images.get(version)
 
     def image(self, version, make):
-        """The image of ``version``; ``make()`` renders it on a miss (outside the lock)."""
+        """The image of ``version``; ``make()`` renders it on a miss (one render at a time)."""
+        image = self._cached(version)
+        if image is not None:
+            return image
+        with ImageCache._making:
+            image = self._cached(version)  # rendered by the request this one waited for
+            if image is None:
+                image = make()
+                with self._lock:
+                    self._images[version] = image
+                    while len(self._images) > self.size:
+                        self._images.popitem(last=False)
+        return image
+
+    def _cached(self, version):
         with self._lock:
             if version in self._images:
                 self._images.move_to_end(version)
                 return self._images[version]
-        image = make()
-        with self._lock:
-            self._images[version] = image
-            while len(self._images) > self.size:
-                self._images.popitem(last=False)
-        return image
+        return None

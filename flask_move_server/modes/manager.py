@@ -133,7 +133,7 @@ class ModeManager:
             if not os.path.isfile(yaml_path):
                 raise self._catalogue_unknown(map_name)
         if isinstance(pose, str):
-            pose = relocalizing.waypoint_pose(self._waypoints_path(map_name), pose)
+            pose = relocalizing.waypoint_pose(self._waypoints_path(map_name), pose, map_name)
         return Target(mode, map_name, yaml_path, pose)
 
     def _catalogue_unknown(self, name):
@@ -317,7 +317,17 @@ class ModeManager:
             return unusable_map_target(map_name, "is gone" if isinstance(exc, UnknownMap) else "has a bad name")
 
     def set_pose(self, pose):
-        """Tell localization the robot is at ``pose`` (in the map frame); WrongMode when no map is in use."""
+        """Tell localization the robot is at ``pose`` (in the map frame); WrongMode when no map is in use.
+
+        ModeSwitching while a switch (or a restart) is under way: the localization being started
+        would miss the pose or overwrite it with the map's dock, while the answer said ok.
+        """
+        with self._changed:
+            busy, target = self._busy, self._target
+        if busy:
+            raise ModeSwitching("A switch to {} is under way, so a pose now would be lost; wait until GET /mode "
+                                "says running, or give the pose with the switch (POST /mode with \"pose\")."
+                                .format(target.describe()))
         if self.status()["mode"] == "idle":
             raise WrongMode("No map is in use (the mode is idle): start navigation on a map first "
                             "(POST /mode {\"mode\": \"navigation\", \"map\": NAME}).")

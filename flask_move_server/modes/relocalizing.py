@@ -21,14 +21,28 @@ def _waypoints(path):
     return waypoints_format.parse(text or "", source=path)
 
 
-def waypoint_pose(path, name):
-    """The Pose2D of waypoint ``name`` in the waypoints file ``path``; UnknownWaypoint if it has none."""
+def waypoint_pose(path, name, map_name=None):
+    """The Pose2D of waypoint ``name`` in the waypoints file ``path``; UnknownWaypoint if it has none.
+
+    ``map_name``: the map switched to, whose waypoints are not those ``/waypoints`` serves yet,
+    so the error names that map and its waypoints (the served ones may well hold ``name``).
+    """
     check_name(name)
     waypoints = _waypoints(path)
     if name not in waypoints:
-        raise UnknownWaypoint(name, suggest(name, waypoints))
+        error = UnknownWaypoint(name, suggest(name, waypoints))
+        if map_name is not None:
+            error.args = (_not_on_map(name, map_name, sorted(waypoints), error.suggestions),)
+        raise error
     wp = waypoints[name]
     return Pose2D(wp.x, wp.y, wp.yaw)
+
+
+def _not_on_map(name, map_name, names, close):
+    listed = ", ".join(repr(n) for n in names[:10]) + (", ..." if len(names) > 10 else "")
+    return "The map {!r} has no waypoint named {!r}.{} A pose's name is one of the map's own waypoints ({}).".format(
+        map_name, name, " Did you mean: {}?".format(", ".join(repr(s) for s in close)) if close else "",
+        "it has " + listed if names else "it has none yet")
 
 
 def dock_pose(path):

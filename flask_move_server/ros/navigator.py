@@ -22,6 +22,7 @@ from geometry_msgs.msg import PoseStamped
 from move_base_msgs.msg import MoveBaseAction, MoveBaseGoal
 
 from flask_move_server.errors import NavigationUnavailable, RosUnavailable
+from flask_move_server.goal_endings import said_sentence
 from flask_move_server.ros.action_status import read_status_lightly
 from flask_move_server.ros.convert import pose_from_msg, pose_stamped
 from flask_move_server.ros.readiness import ServerReadiness
@@ -214,13 +215,29 @@ class Navigator:
 
     def _done(self, seq, status):
         state = _FROM_STATUS.get(status, ABORTED)
-        self._finish(seq, state)
-        log.info("goal %d: %s", seq, state)
+        said = self._said(state)
+        self._finish(seq, state, said)
+        log.info("goal %d: %s%s", seq, state, " ({})".format(said) if said else "")
 
-    def _finish(self, seq, state):
+    def _said(self, state):
+        """move_base's own reason for a goal that failed (its status text: "Failed to find a valid plan…"), or None.
+
+        Called in the goal's done callback, while the client still holds that goal.
+        """
+        if state not in (ABORTED, REJECTED) or self._client is None:
+            return None
+        try:
+            text = self._client.get_goal_status_text()
+        except Exception:  # a reason is a nicety: never let it lose the goal's end
+            return None
+        return text.strip() or None
+
+    def _finish(self, seq, state, said=None):
         with self._cond:
             if seq == self._seq and self._state in UNDER_WAY:  # the first end of a goal is its end
                 self._state = state
+                if said:
+                    self._message = said_sentence(state, self._goal.target if self._goal else None, said)
                 self._cond.notify_all()
 
     def _master_lost(self):

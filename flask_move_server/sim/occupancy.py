@@ -14,6 +14,7 @@ Pure: no rospy. A bad file raises ConfigError naming the file, key and reason.
 
 import math
 import os
+import stat
 from dataclasses import dataclass
 
 import yaml
@@ -21,6 +22,7 @@ import yaml
 from flask_move_server.errors import ConfigError
 
 OCCUPIED, FREE, UNKNOWN = 100, 0, -1
+MAX_CELLS = 6000 * 6000  # past a gmapping canvas (4000 x 4000); a bigger image would not fit a Pi's memory
 MODES = ("trinary", "scale", "raw")
 
 
@@ -63,8 +65,7 @@ def load(yaml_path):
     meta = read_meta(yaml_path)
     image_path = os.path.join(os.path.dirname(os.path.abspath(yaml_path)), meta["image"])
     try:
-        with open(image_path, "rb") as f:
-            width, height, pixels = parse_pgm(f.read())
+        width, height, pixels = parse_pgm(read_image(image_path))
     except OSError as exc:
         raise ConfigError(yaml_path, "image", "cannot read {}: {}".format(image_path, exc.strerror))
     except ValueError as exc:
@@ -174,6 +175,29 @@ def parse_pgm(data):
     if maxval != 255:
         values = [min(255, v * 255 // maxval) for v in values]
     return width, height, values
+
+
+def read_image(path, head_only=False):
+    """The bytes of a map's PGM (only its first 4 KiB with ``head_only``), read within bounds.
+
+    A map YAML is a file anyone may drop in or edit, so its ``image`` may name
+    anything: a FIFO or a device (opened without blocking and refused, never a
+    worker waiting or reading forever), or an image whose header declares more
+    than :data:`MAX_CELLS` pixels (refused before its pixels are read). ValueError
+    says which; OSError when it cannot be opened.
+    """
+    fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0))
+    with os.fdopen(fd, "rb") as f:
+        if not stat.S_ISREG(os.fstat(f.fileno()).st_mode):
+            raise ValueError("not a regular file; a map image must be a PGM file")
+        head = f.read(4096)
+        width, height, _, _ = pgm_header(head)
+        if width * height > MAX_CELLS:
+            raise ValueError("the image is {} x {} pixels, more than the {} cells a map may have".format(
+                width, height, MAX_CELLS))
+        if head_only:
+            return head
+        return head + f.read(8 * width * height)  # P2 text: a few digits and a space per pixel
 
 
 def pgm_header(data):

@@ -64,24 +64,24 @@ def save_map():
     return jsonify(_maps().save(name, overwrite=overwrite, then=then)), 201
 
 
-@maps_api.route("/maps/<name>", methods=["GET"])
+@maps_api.route("/maps/<waypoint:name>", methods=["GET"])
 def describe_map(name):
     return jsonify(_maps().describe(name))
 
 
-@maps_api.route("/maps/<name>", methods=["DELETE"])
+@maps_api.route("/maps/<waypoint:name>", methods=["DELETE"])
 def delete_map(name):
     _maps().delete(name)
     return "", 204
 
 
-@maps_api.route("/maps/<name>", methods=["PATCH"])
+@maps_api.route("/maps/<waypoint:name>", methods=["PATCH"])
 def rename_map(name):
     data = json_object(("name",))
     return jsonify({"status": "ok", "map": _maps().rename(name, text(data, "name"))})
 
 
-@maps_api.route("/maps/<name>/image", methods=["GET"])
+@maps_api.route("/maps/<waypoint:name>/image", methods=["GET"])
 def saved_image(name):
     service = _maps()
     return _png(service.saved_etag(name), lambda: service.saved_image(name)[1])
