@@ -33,22 +33,12 @@ sys.path.insert(0, ROOT)
 from tests.conftest import ServerProcess, free_port, stop_process, wait_for  # noqa: E402
 from tests.sse import EventReader  # noqa: E402
 
-TICKS = os.sysconf("SC_CLK_TCK")
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from bench_sim import cpu_seconds, cpu_share  # noqa: E402  (a process's CPU from /proc, as bench_sim reads it)
+
 PAGE = os.sysconf("SC_PAGE_SIZE")
 FAR = {"x": 8.4, "y": 0.9, "yaw": 0.0}
 DOCK = {"x": 0.0, "y": 0.0, "yaw": 0.0}
-
-
-def cpu_seconds(pid):
-    with open("/proc/{}/stat".format(pid)) as f:
-        fields = f.read().rsplit(")", 1)[1].split()
-    return (int(fields[11]) + int(fields[12])) / TICKS
-
-
-def cpu_share(pid, seconds):
-    c0, t0 = cpu_seconds(pid), time.monotonic()
-    time.sleep(seconds)
-    return 100.0 * (cpu_seconds(pid) - c0) / (time.monotonic() - t0)
 
 
 def rss_mb(pid):

@@ -258,3 +258,25 @@ def no_thread_left_running():
     left = leftover()
     assert not left, "threads left running: {}".format(
         ", ".join("{} ({})".format(t.name, _thread_module(t)) for t in left))
+
+
+@contextlib.contextmanager
+def hardened(app, server_config, loop_timeout=None):
+    """``app`` on the server the product runs, in a thread; yields (server, base URL).
+
+    ``loop_timeout``: how long waitress's loop may sleep when nothing wakes it (it wakes once a
+    second by itself), for tests that must see a write sent when it is made, not when the loop wakes.
+    """
+    from flask_move_server.http_server import HttpServer
+
+    server = HttpServer(app, server_config)
+    if loop_timeout is not None:
+        server.adj.asyncore_loop_timeout = loop_timeout
+    thread = threading.Thread(target=server.run, name="test-http-server", daemon=True)
+    thread.start()
+    try:
+        yield server, "http://127.0.0.1:{}".format(server.effective_port)
+    finally:
+        server.stop()
+        thread.join(5)
+        server.close()

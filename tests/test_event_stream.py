@@ -8,17 +8,16 @@ amount of memory, and a page that goes away gives its place back.
 
 import contextlib
 import socket
-import threading
 import time
 
 import pytest
 import requests
 
 from flask_move_server.events import EventBus
-from flask_move_server.http_server import STREAM_BACKLOG, HttpServer
+from flask_move_server.http_server import STREAM_BACKLOG
 from flask_move_server.web import create_app
 from flask_move_server.web.events import StreamGate
-from tests.conftest import wait_for
+from tests.conftest import hardened, wait_for
 from tests.fake_robot import FakeRobot
 from tests.sse import EventReader
 
@@ -45,16 +44,8 @@ def _serve(robot_config, store, bus, token=None, **gate):
     app = create_app(robot_config, FakeRobot(), store, token=token, events=bus)
     if gate:
         app.extensions["flask_move_server"]["streams"] = StreamGate(**gate)
-    server = HttpServer(app, robot_config.server)
-    server.adj.asyncore_loop_timeout = 60
-    thread = threading.Thread(target=server.run, name="test-http-server", daemon=True)
-    thread.start()
-    try:
-        yield server, "http://127.0.0.1:{}".format(server.effective_port)
-    finally:
-        server.stop()
-        thread.join(5)
-        server.close()
+    with hardened(app, robot_config.server, loop_timeout=60) as served:
+        yield served
 
 
 def test_a_new_stream_gets_the_latest_state_at_once_then_each_change(robot_config, store, bus):

@@ -9,30 +9,14 @@ import contextlib
 import json
 import logging
 import socket
-import threading
 import time
 from concurrent.futures import ThreadPoolExecutor
 
 import pytest
 import requests
 
-from flask_move_server.http_server import HttpServer
-from tests.conftest import wait_for
+from tests.conftest import hardened, wait_for
 from tests.standins.move_base import HOLD_X
-
-
-@contextlib.contextmanager
-def hardened(app, server_config):
-    """``app`` on the server the product runs, in a thread; yields (server, base URL)."""
-    server = HttpServer(app, server_config)
-    thread = threading.Thread(target=server.run, name="test-http-server", daemon=True)
-    thread.start()
-    try:
-        yield server, "http://127.0.0.1:{}".format(server.effective_port)
-    finally:
-        server.stop()
-        thread.join(5)
-        server.close()
 
 
 def raw(url, data, timeout=10):
