@@ -18,6 +18,7 @@ import os
 import shutil
 import threading
 import time
+from concurrent.futures import ThreadPoolExecutor
 
 from flask_move_server import children
 from flask_move_server.errors import StackFailed
@@ -40,6 +41,10 @@ class LaunchedStack:
         self._proc = None
         self._stopping = False
         self._closed = False
+        # roslaunch is started from this one thread, alive until close(): the parent-death signal
+        # (children.die_with_parent) fires when the thread that started a child ends, not the process,
+        # and a mode switch's thread ends as soon as the stack runs.
+        self._spawner = ThreadPoolExecutor(max_workers=1, thread_name_prefix="stack-spawner")
 
     @classmethod
     def from_config(cls, config):
@@ -68,9 +73,11 @@ class LaunchedStack:
         respawning = readiness.check_launch(command[1:])
         proc = child.StackProcess(command)
         try:
-            proc.start()
+            self._spawner.submit(proc.start).result()
         except OSError as exc:
             raise StackFailed("cannot run roslaunch ({}): is ROS installed?".format(exc.strerror))
+        except RuntimeError:  # close() shut the spawner down while this start was on its way
+            raise StackFailed("the server is shutting down")
         with self._lock:
             closed, self._proc = self._closed, proc
         if closed:  # close() came while roslaunch was starting
@@ -157,6 +164,7 @@ class LaunchedStack:
         with self._lock:
             self._closed = True
         self.stop()
+        self._spawner.shutdown(wait=True)  # after stop: the spawner's end signals no child of ours left
 
     def __enter__(self):
         return self
