@@ -312,6 +312,19 @@ def test_running_waits_until_goals_reach_the_new_move_base(cfg):
         modes.close()
 
 
+def test_a_mode_whose_stack_has_no_move_base_runs_without_waiting_for_it(cfg):
+    stack = StandInStack()
+    stack.serves_goals = lambda mode: mode == "navigation"  # as LaunchedStack: mapping.launch has no move_base
+    asked = []
+    modes = ModeManager(cfg, stack, goals_ready=lambda: asked.append(1))
+    try:
+        modes.switch("mapping")
+        assert modes.wait(5)
+        assert "move_base" not in modes.status()["message"] and asked == []
+    finally:
+        modes.close()
+
+
 def test_a_move_base_that_does_not_answer_is_said_in_the_message(cfg):
     modes = ModeManager(cfg, StandInStack(), goals_ready=lambda: False)
     modes.READY_WAIT = 0.1

@@ -87,6 +87,12 @@ class LaunchedStack:
         threading.Thread(target=self._watch, args=(proc, respawning, on_exit), name="stack-watch",
                          daemon=True).start()
 
+    @staticmethod
+    def serves_goals(mode):
+        """Whether ``mode``'s stack runs move_base: navigation only (mapping.launch is steered by hand),
+        so the mode manager does not wait for goals to reach a move_base that mapping never starts."""
+        return mode == "navigation"
+
     def command(self, mode, map_yaml=None):
         """The roslaunch command line of ``mode``."""
         launch = self.modes.mapping_launch if mode == "mapping" else self.modes.navigation_launch

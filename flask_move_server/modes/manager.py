@@ -187,13 +187,18 @@ class ModeManager:
             if not isinstance(exc, StackFailed):
                 log.exception("the %s stack could not start", target.mode)
             return str(exc) or type(exc).__name__
-        late = self._await_goals()
+        late = self._await_goals() if self._serves_goals(target.mode) else ""
         if relocalize:
             note = relocalizing.after_start(target, self._waypoints_path, self._publish_pose)
         else:
             note = relocalizing.restarted_note(target, self._restarts)
         self._running(gen, target, note + late)
         return None
+
+    def _serves_goals(self, mode):
+        """Does ``mode``'s stack run move_base? The backend says (``serves_goals``); if it cannot, assume so."""
+        serves = getattr(self._backend, "serves_goals", None)
+        return serves is None or serves(mode)
 
     def _await_goals(self):
         """Wait briefly until goals reach the new move_base, so "running" means /goto works; a note if not."""
