@@ -139,6 +139,7 @@ def test_a_crashed_stack_is_restarted_then_given_up(cfg, harness):
     wait_for(lambda: harness.modes.status()["state"] == "failed", 5)
     assert harness.modes.status()["message"] == "failed after 2 restarts: slam_gmapping died a third time"
     assert harness.stack.starts() == [("mapping", None)] * 3
+    wait_for(lambda: harness.stack.calls[-1] == ("stop",), 5, message="the rest of the stack stopped")
 
 
 def test_a_restart_that_cannot_start_counts_as_a_crash(cfg, harness):

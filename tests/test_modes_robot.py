@@ -166,6 +166,8 @@ def test_a_killed_stack_node_is_restarted_then_reported_failed(robot):
     failed = wait_mode(server, lambda m: m["state"] == "failed", message="the mode to fail")
     assert failed["mode"] == "mapping" and failed["message"].startswith("failed after 1 restart: " + killed), failed
     assert server.get("/status").json()["mode"] == server.get("/mode").json()
+    assert wait_for(lambda: not robot.stack(), timeout=15, message="the rest of the failed stack to stop")
+    assert server.get("/mode").json()["state"] == "failed"
     assert server.stop() == 0
 
 

@@ -7,7 +7,8 @@ Every state change is published as a ``mode`` event carrying the ``GET /mode`` b
 mode that reached ``running`` is remembered in ``Config.mode_state_file()`` for the next start.
 
 A stack that dies by itself (the backend calls ``on_exit``) is restarted up to
-``modes.restarts`` times, after 1, 2 then 4 s, and is ``failed`` after that; a run of
+``modes.restarts`` times, after 1, 2 then 4 s, and is ``failed`` after that (what is left of
+it stopped: roslaunch keeps a stack's other nodes running when one dies); a run of
 :attr:`ModeManager.STABLE_RUN` seconds forgives the earlier crashes.
 
 The backend (``modes/launched.py`` on the robot, ``modes/simulated.py`` with ``--sim``) does
@@ -259,12 +260,21 @@ class ModeManager:
             log.warning("the %s stack stopped by itself: %s", self._target.mode, message)
             if self._running_since is not None and self._clock() - self._running_since >= self.STABLE_RUN:
                 self._restarts = 0
-            if not self._count_restart(message):
-                return
+            gave_up = not self._count_restart(message)
             self._busy = True
             self._gen += 1  # the restarted stack's exits carry the new number; the dead one's are ignored
             gen, target = self._gen, self._target
-        self._spawn(self._restart, gen, target, message)
+        if gave_up:
+            self._spawn(self._stop_remains, gen)
+        else:
+            self._spawn(self._restart, gen, target, message)
+
+    def _stop_remains(self, gen):
+        """Failed for good: stop what is left of the stack (roslaunch and its other nodes, the lidar spinning)."""
+        try:
+            self._stop_stack()
+        finally:
+            self._done(gen)
 
     def _count_restart(self, message):
         """Under the lock: one more restart, or False after ``modes.restarts`` (the mode is then failed)."""
