@@ -123,6 +123,9 @@ def test_map_the_flat_save_it_navigate_on_it_switch_maps_and_stop(robot):
     grid = mapfile.load(str(maps / "flat.yaml"))
     assert (grid.width, grid.height) == GMAPPING_SIZE
     assert (maps / "flat.pgm").read_bytes().startswith(b"P5\n")  # map_saver's binary greymap
+    assert (maps / "flat.yaml").read_text().startswith(  # map_saver's YAML, as map_server reads it
+        "image: flat.pgm\nresolution: 0.050000\norigin: [-0.500000, -0.250000, 0.000000]\nnegate: 0\n"
+        "occupied_thresh: 0.65\nfree_thresh: 0.196\n")
     mode = wait_mode(server, lambda m: m["state"] in ("running", "failed") and m["mode"] == "navigation",
                      timeout=SWITCH_WAIT, message="navigation on the saved map")
     assert (mode["mode"], mode["map"], mode["state"]) == ("navigation", "flat", "running"), mode
