@@ -13,8 +13,9 @@ it stopped: roslaunch keeps a stack's other nodes running when one dies); a run 
 
 The backend (``modes/launched.py`` on the robot, ``modes/simulated.py`` with ``--sim``) does
 the work: ``start(mode, map_yaml_or_None, on_exit)`` blocks until the stack is ready or raises
-StackFailed; ``stop()`` is idempotent. ``relocalize(pose)`` publishes the robot's pose estimate
-(``ros/initial_pose.py``). Pure: no rospy, no Flask.
+StackFailed; ``stop()`` is idempotent; an optional ``serves_goals(mode)`` says whether the
+mode runs move_base (no: "running" does not wait for goals to reach one). ``relocalize(pose)``
+publishes the robot's pose estimate (``ros/initial_pose.py``). Pure: no rospy, no Flask.
 """
 
 import datetime
