@@ -114,6 +114,7 @@ def test_map_the_flat_save_it_navigate_on_it_switch_maps_and_stop(robot):
     assert set(robot.stack()) == MAPPING
     wait_for(lambda: server.get("/map").status_code == 200, timeout=10, message="GET /map to serve the map")
     assert map_size(server) == GMAPPING_SIZE
+    mapped = server.get("/map").json()["version"]
     image = server.get("/map/image")
     assert image.status_code == 200 and image.headers["Content-Type"] == "image/png"
 
@@ -130,6 +131,7 @@ def test_map_the_flat_save_it_navigate_on_it_switch_maps_and_stop(robot):
                      timeout=SWITCH_WAIT, message="navigation on the saved map")
     assert (mode["mode"], mode["map"], mode["state"]) == ("navigation", "flat", "running"), mode
     assert set(robot.stack()) == NAVIGATION
+    wait_for(lambda: server.get("/map").json()["version"] != mapped, timeout=10, message="map_server's /map")
     assert map_size(server) == GMAPPING_SIZE  # now the stub map_server's, read from flat.yaml
     r = server.post("/pose", {"x": 0.2, "y": 0.1, "yaw": 0.5})
     assert r.status_code == 200, r.text
