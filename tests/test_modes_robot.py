@@ -73,9 +73,11 @@ def running_stack(master_uri, master_pid, servers):
 
 
 def node_name(cmdline):
-    if "roslaunch" in cmdline.split(" ", 2)[1]:
+    """A node's ``__name:=``, ``roslaunch``, or the command line itself (a process being forked has none yet)."""
+    words = cmdline.split()
+    if any(os.path.basename(word) == "roslaunch" for word in words[:2]):
         return "roslaunch"
-    names = [word[len("__name:="):] for word in cmdline.split() if word.startswith("__name:=")]
+    names = [word[len("__name:="):] for word in words if word.startswith("__name:=")]
     return names[0] if names else cmdline
 
 
