@@ -17,7 +17,9 @@ MARKER = "FLASK_MOVE_SERVER_STACK"
 def die_with_parent(sig=signal.SIGTERM):
     """In a child (``preexec_fn``): get ``sig`` when the server dies without closing (Linux).
 
-    SIGTERM, not SIGKILL: roslaunch and rosmaster stop their own children on SIGTERM.
+    SIGTERM, not SIGKILL: roslaunch and rosmaster stop their own children on SIGTERM. Linux sends
+    it when the *thread* that started the child ends: start children from a thread that lives as
+    long as they should (the main thread, or one kept for the purpose, as ``modes/launched.py`` does).
     """
     try:
         import ctypes

@@ -139,6 +139,7 @@ def test_a_crashed_stack_is_restarted_then_given_up(cfg, harness):
     wait_for(lambda: harness.modes.status()["state"] == "failed", 5)
     assert harness.modes.status()["message"] == "failed after 2 restarts: slam_gmapping died a third time"
     assert harness.stack.starts() == [("mapping", None)] * 3
+    wait_for(lambda: harness.stack.calls[-1] == ("stop",), 5, message="the rest of the stack stopped")
 
 
 def test_a_restart_that_cannot_start_counts_as_a_crash(cfg, harness):
@@ -308,6 +309,19 @@ def test_running_waits_until_goals_reach_the_new_move_base(cfg):
         assert modes.wait(5)
         assert next(answers, "asked until ready") == "asked until ready"
         assert "move_base" not in modes.status()["message"]
+    finally:
+        modes.close()
+
+
+def test_a_mode_whose_stack_has_no_move_base_runs_without_waiting_for_it(cfg):
+    stack = StandInStack()
+    stack.serves_goals = lambda mode: mode == "navigation"  # as LaunchedStack: mapping.launch has no move_base
+    asked = []
+    modes = ModeManager(cfg, stack, goals_ready=lambda: asked.append(1))
+    try:
+        modes.switch("mapping")
+        assert modes.wait(5)
+        assert "move_base" not in modes.status()["message"] and asked == []
     finally:
         modes.close()
 

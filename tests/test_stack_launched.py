@@ -111,6 +111,22 @@ def test_switching_modes_leaves_nothing_of_the_previous_stack(stack_env, ros_nod
     assert nothing_left(master_uri), stack_processes(master_uri)
 
 
+def test_the_stack_outlives_the_thread_that_started_it(stack_env):
+    # The mode manager starts a stack from a switch thread that ends once the stack runs; the
+    # parent-death signal follows the thread that started roslaunch, not the server process.
+    stack = make_stack(stack_env)
+    try:
+        starter = threading.Thread(target=stack.start, args=("mapping", None))
+        starter.start()
+        starter.join(60)
+        started = stack_processes(stack_env["ROS_MASTER_URI"])
+        time.sleep(1.5)  # a SIGTERM to roslaunch at the thread's end has it stop its nodes within this
+        assert stack.running and stack_processes(stack_env["ROS_MASTER_URI"]) == started
+    finally:
+        stack.close()
+    assert nothing_left(stack_env["ROS_MASTER_URI"])
+
+
 def test_navigation_without_a_map_uses_the_launch_files_default(stack_env, ros_node, tmp_path, monkeypatch):
     monkeypatch.setenv("FLASK_MOVE_SERVER_MAP", save_map(tmp_path, "default", 17, 9))
     with make_stack(stack_env) as stack:

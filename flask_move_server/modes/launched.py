@@ -18,6 +18,7 @@ import os
 import shutil
 import threading
 import time
+from concurrent.futures import ThreadPoolExecutor
 
 from flask_move_server import children
 from flask_move_server.errors import StackFailed
@@ -40,6 +41,10 @@ class LaunchedStack:
         self._proc = None
         self._stopping = False
         self._closed = False
+        # roslaunch is started from this one thread, alive until close(): the parent-death signal
+        # (children.die_with_parent) fires when the thread that started a child ends, not the process,
+        # and a mode switch's thread ends as soon as the stack runs.
+        self._spawner = ThreadPoolExecutor(max_workers=1, thread_name_prefix="stack-spawner")
 
     @classmethod
     def from_config(cls, config):
@@ -68,9 +73,11 @@ class LaunchedStack:
         respawning = readiness.check_launch(command[1:])
         proc = child.StackProcess(command)
         try:
-            proc.start()
+            self._spawner.submit(proc.start).result()
         except OSError as exc:
             raise StackFailed("cannot run roslaunch ({}): is ROS installed?".format(exc.strerror))
+        except RuntimeError:  # close() shut the spawner down while this start was on its way
+            raise StackFailed("the server is shutting down")
         with self._lock:
             closed, self._proc = self._closed, proc
         if closed:  # close() came while roslaunch was starting
@@ -79,6 +86,12 @@ class LaunchedStack:
         self._wait_ready(proc, mode, respawning)
         threading.Thread(target=self._watch, args=(proc, respawning, on_exit), name="stack-watch",
                          daemon=True).start()
+
+    @staticmethod
+    def serves_goals(mode):
+        """Whether ``mode``'s stack runs move_base: navigation only (mapping.launch is steered by hand),
+        so the mode manager does not wait for goals to reach a move_base that mapping never starts."""
+        return mode == "navigation"
 
     def command(self, mode, map_yaml=None):
         """The roslaunch command line of ``mode``."""
@@ -157,6 +170,7 @@ class LaunchedStack:
         with self._lock:
             self._closed = True
         self.stop()
+        self._spawner.shutdown(wait=True)  # after stop: the spawner's end signals no child of ours left
 
     def __enter__(self):
         return self

@@ -7,13 +7,15 @@ Every state change is published as a ``mode`` event carrying the ``GET /mode`` b
 mode that reached ``running`` is remembered in ``Config.mode_state_file()`` for the next start.
 
 A stack that dies by itself (the backend calls ``on_exit``) is restarted up to
-``modes.restarts`` times, after 1, 2 then 4 s, and is ``failed`` after that; a run of
+``modes.restarts`` times, after 1, 2 then 4 s, and is ``failed`` after that (what is left of
+it stopped: roslaunch keeps a stack's other nodes running when one dies); a run of
 :attr:`ModeManager.STABLE_RUN` seconds forgives the earlier crashes.
 
 The backend (``modes/launched.py`` on the robot, ``modes/simulated.py`` with ``--sim``) does
 the work: ``start(mode, map_yaml_or_None, on_exit)`` blocks until the stack is ready or raises
-StackFailed; ``stop()`` is idempotent. ``relocalize(pose)`` publishes the robot's pose estimate
-(``ros/initial_pose.py``). Pure: no rospy, no Flask.
+StackFailed; ``stop()`` is idempotent; an optional ``serves_goals(mode)`` says whether the
+mode runs move_base (no: "running" does not wait for goals to reach one). ``relocalize(pose)``
+publishes the robot's pose estimate (``ros/initial_pose.py``). Pure: no rospy, no Flask.
 """
 
 import datetime
@@ -187,13 +189,18 @@ class ModeManager:
             if not isinstance(exc, StackFailed):
                 log.exception("the %s stack could not start", target.mode)
             return str(exc) or type(exc).__name__
-        late = self._await_goals()
+        late = self._await_goals() if self._serves_goals(target.mode) else ""
         if relocalize:
             note = relocalizing.after_start(target, self._waypoints_path, self._publish_pose)
         else:
             note = relocalizing.restarted_note(target, self._restarts)
         self._running(gen, target, note + late)
         return None
+
+    def _serves_goals(self, mode):
+        """Does ``mode``'s stack run move_base? The backend says (``serves_goals``); if it cannot, assume so."""
+        serves = getattr(self._backend, "serves_goals", None)
+        return serves is None or serves(mode)
 
     def _await_goals(self):
         """Wait briefly until goals reach the new move_base, so "running" means /goto works; a note if not."""
@@ -254,12 +261,21 @@ class ModeManager:
             log.warning("the %s stack stopped by itself: %s", self._target.mode, message)
             if self._running_since is not None and self._clock() - self._running_since >= self.STABLE_RUN:
                 self._restarts = 0
-            if not self._count_restart(message):
-                return
+            gave_up = not self._count_restart(message)
             self._busy = True
             self._gen += 1  # the restarted stack's exits carry the new number; the dead one's are ignored
             gen, target = self._gen, self._target
-        self._spawn(self._restart, gen, target, message)
+        if gave_up:
+            self._spawn(self._stop_remains, gen)
+        else:
+            self._spawn(self._restart, gen, target, message)
+
+    def _stop_remains(self, gen):
+        """Failed for good: stop what is left of the stack (roslaunch and its other nodes, the lidar spinning)."""
+        try:
+            self._stop_stack()
+        finally:
+            self._done(gen)
 
     def _count_restart(self, message):
         """Under the lock: one more restart, or False after ``modes.restarts`` (the mode is then failed)."""
