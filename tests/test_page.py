@@ -1,0 +1,267 @@
+"""The phone page in a real browser (Debian's chromium, Playwright) against a real ``--sim`` server.
+
+A phone-sized page (390×844, touch) drives the simulated robot through the same controls a person
+uses: the joystick, STOP, the waypoint list, the map's markers, press-and-drag on the map, marking
+places, the e-stop. What the test checks is what a person would notice: the robot moves, arrives,
+stops; the waypoints file changes; the page shows it. State the page draws is read from its data-*
+attributes (where the robot is drawn, where the map image is), never from test-only endpoints.
+"""
+
+import math
+
+import pytest
+
+pytest.importorskip("playwright", reason="playwright is not installed (pip install -e '.[test]'; Debian lacks it)")
+
+from tests.conftest import wait_for  # noqa: E402
+from tests.page_browser import (  # noqa: E402
+    DESKTOP,
+    Browser,
+    Finger,
+    PageSim,
+    RequestLog,
+    angle_error,
+    canvas_box,
+    centre,
+    live,
+    robot_px,
+    screenshot,
+)
+
+CELLS = 2  # a goal from the map may be this many map cells from the point under the finger
+
+
+@pytest.fixture(scope="module")
+def sim(tmp_path_factory):
+    server = PageSim(tmp_path_factory.mktemp("page_sim"))
+    yield server
+    server.close()
+
+
+@pytest.fixture(scope="module")
+def browser():
+    b = Browser()
+    yield b
+    b.close()
+
+
+@pytest.fixture
+def page(sim, browser):
+    page = browser.open(sim.url + "/")
+    live(page)
+    page.wait_for_function("document.getElementById('map').dataset.robotPx")
+    yield page
+    assert page.errors == []
+    page.close()
+
+
+def at_rest(sim):
+    """Stop whatever the robot does and wait until it stands still."""
+    sim.post("/stop")
+    wait_for(lambda: sim.status()["motors"]["left"] == 0.0 and sim.status()["motors"]["right"] == 0.0, timeout=10,
+             message="the motors to stop")
+
+
+# ---- where things are on the screen, computed from the server's own numbers ----------------------------
+
+def map_meta(sim):
+    r = sim.get("/map")
+    return r.json() if r.status_code == 200 else None
+
+
+class Screen:
+    """Canvas CSS px <-> metres, from the drawn image's rectangle and the server's ``/map``.
+
+    With a map this does not trust the page's own transform: the image rectangle the page drew and the
+    server's metadata (origin, resolution, size; row 0 = the top) are enough. Without one: the view.
+    """
+
+    def __init__(self, page, sim):
+        meta, rect = map_meta(sim), page.get_attribute("#map", "data-image-rect")
+        if meta and rect:
+            self.left, self.top, width, height = (float(v) for v in rect.split(","))
+            self.cell = meta["resolution"]
+            self.ox, self.oy = meta["origin"][:2]
+            self.rows = meta["height"]
+            self.px_x, self.px_y = width / meta["width"], height / meta["height"]  # CSS px per cell
+            self.tolerance = CELLS * self.cell  # metres
+        else:  # no map: the grid the page draws, scale px per metre, the origin at (ox, oy) on screen
+            scale, sx, sy = (float(v) for v in page.get_attribute("#map", "data-view").split(","))
+            self.cell, self.rows, self.px_x, self.px_y = 1.0, 0.0, scale, scale
+            self.left, self.top, self.ox, self.oy = sx, sy, 0.0, 0.0
+            self.tolerance = CELLS * 0.05
+
+    def world(self, px, py):
+        return (self.ox + (px - self.left) / self.px_x * self.cell,
+                self.oy + (self.rows - (py - self.top) / self.px_y) * self.cell)
+
+    def screen(self, x, y):
+        return (self.left + (x - self.ox) / self.cell * self.px_x,
+                self.top + (self.rows - (y - self.oy) / self.cell) * self.px_y)
+
+
+def on_page(page, point):
+    box = canvas_box(page)
+    return box["x"] + point[0], box["y"] + point[1]
+
+
+# ---- the tests ---------------------------------------------------------------------------------------
+
+def test_the_robot_is_drawn_where_status_says(sim, page):
+    at_rest(sim)
+    page.wait_for_timeout(500)  # the drawn arrow eases to the newest pose
+    pose = sim.pose()
+    expected = Screen(page, sim).screen(pose["x"], pose["y"])
+    drawn = robot_px(page)
+    assert math.hypot(drawn[0] - expected[0], drawn[1] - expected[1]) <= 3, (drawn, expected)
+    assert page.get_attribute("#map", "data-robot-stale") == "0"
+    screenshot(page, "phone-map")
+
+
+def test_the_joystick_drives_and_letting_go_stops(sim, page):
+    at_rest(sim)
+    log = RequestLog(page)
+    x, y = centre(page, "#pad")
+    finger = Finger(page, (x, y))
+    finger.move((x, y - 60))  # forward
+    wait_for(lambda: sim.status()["motors"]["left"] > 0 and sim.status()["motors"]["right"] > 0, timeout=10,
+             message="the joystick to drive the motors forward")
+    page.wait_for_timeout(600)  # longer than the deadman: only repeats keep it going
+    assert sim.status()["motors"]["left"] > 0, "the joystick must repeat its command while held"
+    assert len(log.calls("POST", "/teleop")) >= 3
+    finger.lift()
+    wait_for(lambda: log.calls("POST", "/stop"), timeout=5, message="a stop sent on release")
+    motors = sim.status()["motors"]
+    assert (motors["left"], motors["right"]) == (0.0, 0.0)
+
+
+def test_losing_focus_stops_the_joystick(sim, page):
+    at_rest(sim)
+    log = RequestLog(page)
+    x, y = centre(page, "#pad")
+    finger = Finger(page, (x, y))
+    finger.move((x + 50, y))  # turn right
+    wait_for(lambda: sim.status()["motors"]["left"] > 0 > sim.status()["motors"]["right"], timeout=10,
+             message="the joystick to turn the robot")
+    page.evaluate("window.dispatchEvent(new Event('blur'))")  # e.g. a call comes in
+    wait_for(lambda: log.calls("POST", "/stop"), timeout=5, message="a stop sent when the page lost focus")
+    teleops = len(log.calls("POST", "/teleop"))
+    page.wait_for_timeout(500)
+    assert len(log.calls("POST", "/teleop")) == teleops, "no command after the page lost focus"
+    assert sim.status()["motors"]["left"] == 0.0
+    finger.lift()
+
+
+def test_tapping_a_waypoint_in_the_list_sends_the_robot_there(sim, page):
+    at_rest(sim)
+    page.locator("#tabs button[data-tab=places]").tap()
+    page.locator("#places li[data-name=sofa] button.go").tap()
+    wait_for(lambda: sim.status()["navigation"]["target"] == "sofa", timeout=10, message="a goal for the sofa")
+    page.wait_for_function("document.getElementById('nav').dataset.state === 'succeeded'", timeout=60000)
+    assert "arrived at sofa" in page.inner_text("#nav-text")
+    x, y, _ = sim.waypoint("sofa")
+    pose = sim.pose()
+    assert math.hypot(pose["x"] - x, pose["y"] - y) < 0.15
+
+
+def test_tapping_a_waypoint_marker_on_the_map_sends_the_robot_there(sim, page):
+    at_rest(sim)
+    x, y, _ = sim.waypoint("dock")
+    page.touchscreen.tap(*on_page(page, Screen(page, sim).screen(x, y)))
+    wait_for(lambda: sim.status()["navigation"]["target"] == "dock", timeout=10, message="a goal for the dock")
+    wait_for(lambda: sim.status()["navigation"]["state"] == "succeeded", timeout=60, message="arrival at the dock")
+
+
+def test_press_and_drag_sends_a_goal_with_its_heading(sim, page):
+    at_rest(sim)
+    screen = Screen(page, sim)
+    start = screen.screen(1.0, 1.0)  # free floor in the demo flat's hall
+    finger = Finger(page, on_page(page, start))
+    for step in range(1, 7):  # drag up and to the left: a heading of 135°
+        finger.move(on_page(page, (start[0] - 8 * step, start[1] - 8 * step)))
+    finger.lift()
+    wait_for(lambda: sim.status()["navigation"]["goal"] is not None and sim.status()["navigation"]["target"] is None,
+             timeout=10, message="a goal from the drag")
+    goal = sim.status()["navigation"]["goal"]
+    wx, wy = screen.world(*start)
+    assert math.hypot(goal["x"] - wx, goal["y"] - wy) <= screen.tolerance, (goal, wx, wy)
+    assert angle_error(goal["yaw"], 3 * math.pi / 4) < 0.1, goal
+    screenshot(page, "phone-goal")
+    wait_for(lambda: sim.status()["navigation"]["state"] == "succeeded", timeout=60, message="the robot to arrive")
+    pose = sim.pose()
+    assert math.hypot(pose["x"] - goal["x"], pose["y"] - goal["y"]) < 0.15
+
+
+def test_stop_cancels_the_goal(sim, page):
+    at_rest(sim)
+    page.locator("#tabs button[data-tab=places]").tap()
+    page.locator("#places li[data-name=kitchen] button.go").tap()
+    page.wait_for_function("document.getElementById('nav').dataset.state === 'active'", timeout=10000)
+    assert "on its way to kitchen" in page.inner_text("#nav-text")
+    page.locator("#stop").tap()
+    wait_for(lambda: sim.status()["navigation"]["state"] == "canceled", timeout=10, message="the goal canceled")
+    page.wait_for_function("document.getElementById('nav').dataset.state === 'canceled'", timeout=5000)
+
+
+def test_marking_places_renaming_and_deleting_them(sim, page, browser):
+    at_rest(sim)
+    page.locator("#tabs button[data-tab=places]").tap()
+    page.fill("#newname", "here now")
+    page.locator("#mark-form button").tap()
+    page.wait_for_selector('#places li[data-name="here now"]')
+    pose, saved = sim.pose(), sim.waypoint("here now")
+    assert math.hypot(saved[0] - pose["x"], saved[1] - pose["y"]) < 0.05
+
+    page.answers.append("hall spot")  # the name asked for after a press-and-drag in Mark mode
+    page.locator("#gesture button[data-gesture=mark]").tap()
+    screen = Screen(page, sim)
+    start = screen.screen(2.0, 0.5)
+    finger = Finger(page, on_page(page, start))
+    finger.move(on_page(page, (start[0] + 40, start[1])))  # facing +x
+    finger.lift()
+    page.wait_for_selector('#places li[data-name="hall spot"]')
+    x, y, yaw = sim.waypoint("hall spot")
+    wx, wy = screen.world(*start)
+    assert math.hypot(x - wx, y - wy) <= screen.tolerance and angle_error(yaw, 0.0) < 0.1
+    assert sim.status()["navigation"]["target"] != "hall spot", "marking must not send the robot"
+
+    page.answers.append("window")
+    page.locator('#places li[data-name="here now"] button', has_text="Rename").tap()
+    page.wait_for_selector('#places li[data-name="window"]')
+    assert sim.waypoint("window") == saved
+    page.wait_for_selector('#places li[data-name="here now"]', state="detached")
+
+    page.answers.append(False)  # "Delete the waypoint?" answered no: nothing happens
+    asked = len(page.asked)
+    page.locator('#places li[data-name="window"] button', has_text="Delete").tap()
+    wait_for(lambda: page.wait_for_timeout(20) or len(page.asked) > asked, message="the delete confirmation")
+    assert "Delete the waypoint window?" in page.asked[-1]
+    assert sim.get("/waypoints/window").status_code == 200
+    page.answers.append(True)
+    page.locator('#places li[data-name="window"] button', has_text="Delete").tap()
+    page.wait_for_selector('#places li[data-name="window"]', state="detached")
+    assert sim.get("/waypoints/window").status_code == 404
+
+
+def test_the_e_stop_latches_shows_and_is_released(sim, page):
+    at_rest(sim)
+    page.locator("#estop").tap()
+    page.wait_for_selector("#estop-banner", state="visible")
+    assert sim.status()["estop"]["latched"] is True
+    assert sim.post("/teleop", {"linear": 0.1, "angular": 0}).status_code == 409
+    screenshot(page, "phone-estop")
+    page.answers.append(True)
+    page.locator("#estop-release").tap()
+    page.wait_for_selector("#estop-banner", state="hidden")
+    assert sim.status()["estop"]["latched"] is False
+
+
+def test_the_desktop_layout_shows_map_and_panel_side_by_side(sim, browser):
+    page = browser.open(sim.url + "/", device=DESKTOP)
+    live(page)
+    page.wait_for_function("document.getElementById('map').dataset.robotPx")
+    board, panel = canvas_box(page), page.locator("#panel").bounding_box()
+    assert panel["x"] >= board["x"] + board["width"] - 1 and board["width"] > 600
+    assert page.locator("#stop").is_visible()
+    screenshot(page, "desktop")
+    page.close()
