@@ -23,6 +23,7 @@ BENCHMARKS = [
     ("sim", "bench_sim.py", ["--repeat", "3", "--drive-seconds", "8"]),
     ("abuse", "bench_abuse.py", ["--connections", "100", "--rounds", "10", "--signals", "2",
                                  "--storm-seconds", "4"]),
+    ("page", "bench_page.py", ["--loads", "3"]),
 ]
 
 
