@@ -60,10 +60,13 @@ def test_a_restarted_server_is_reconnected_to(server, page, tmp_path_factory):
     assert page.inner_text("#conn").startswith("reconnecting")
     assert page.locator('#places li[data-name="sofa"] button.go').is_disabled(), "no goals on stale state"
     assert page.locator("#pad").get_attribute("aria-disabled") == "true"
+    page.wait_for_function("document.getElementById('map').dataset.robotStale === '1'", timeout=5000)
+    assert "not connected" in page.inner_text("#stale-note"), "the grey robot says why"
     screenshot(page, "phone-reconnecting")
 
     server["sim"] = sim = PageSim(folder, token=TOKEN, port=port)
     live(page, timeout=30000)
+    page.wait_for_function("document.getElementById('map').dataset.robotStale === '0'", timeout=10000)
     go_from_the_list(page, "sofa")
     wait_for(lambda: sim.status()["navigation"]["target"] == "sofa", timeout=10, message="a goal after reconnecting")
     sim.post("/stop")

@@ -6,7 +6,7 @@
 
 import {authorisedFetch, api} from "./api.js";
 
-const IDLE_LIMIT_MS = 15000;  // no byte (event or heartbeat) for this long: the stream is dead
+const IDLE_LIMIT_MS = 35000;  // no byte for this long (the server sends a heartbeat every ~15 s): dead
 const BACKOFF_MS = [500, 1000, 2000, 4000, 5000];
 const POLL_MS = 200;
 

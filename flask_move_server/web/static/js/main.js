@@ -73,6 +73,7 @@ async function loadMap() {
   $("map-note").textContent = "";
 }
 
+
 export async function loadWaypoints() {
   const data = await api("GET", "/waypoints");
   map.setWaypoints(data.waypoints);
@@ -132,10 +133,25 @@ map.onPress = (mode, x, y, yaw) => {
 };
 const round = (v) => Math.round(v * 1000) / 1000;
 
+const HINTS = {
+  go: "",
+  pose: "Press where the robot really is, drag the way it faces.",
+  mark: "Press a place, drag the way it should face, then name it.",
+  look: "Drag to move the map; pinch or two fingers to zoom.",
+};
+
 export function setGesture(mode) {
   map.mode = mode;
+  $("hint").textContent = HINTS[mode] || "";
   for (const b of document.querySelectorAll("#gesture button")) b.setAttribute("aria-pressed", String(b.dataset.gesture === mode));
   $("map").dataset.gesture = mode;
+}
+
+/** The note on the map when the grey robot needs a word: lost connection or an old pose. */
+function showStaleNote() {
+  const note = !isLive() ? "robot not connected: its last known position" :
+    !map.robot ? "position unknown" : map.robotStale() ? "position is old (localisation or ROS stalled)" : "";
+  $("stale-note").textContent = note;
 }
 
 // ---- live state -----------------------------------------------------------------------
@@ -147,6 +163,7 @@ function showConnection(state) {
   $("conn").textContent = {live: "live", polling: "live (polling)", reconnecting: "reconnecting…"}[state] || state;
   const off = !isLive();
   map.offline = off;
+  showStaleNote();
   for (const el of document.querySelectorAll(".needs-live")) {
     if (el.tagName === "BUTTON") el.disabled = off; else el.setAttribute("aria-disabled", String(off));
   }
@@ -155,7 +172,12 @@ function showConnection(state) {
 
 /** After every (re)connect: read the whole state again, never trusting what the page held. */
 function resync() {
-  quietly(api("GET", "/status").then((s) => { map.setPose(s.pose); showStatus(s); if (s.estop) showEstop(s.estop); }));
+  quietly(api("GET", "/status").then((s) => {
+    map.setPose(s.pose);
+    showStaleNote();
+    showStatus(s);
+    if (s.estop) showEstop(s.estop);
+  }));
   api("GET", "/mode").then(showMode, (e) => { if (e.status === 404) $("mode").textContent = "robot"; });
   quietly(loadWaypoints());
   quietly(loadMap());
@@ -164,7 +186,7 @@ function resync() {
 
 live.onState = showConnection;
 live.onConnected = resync;
-live.on("pose", (p) => map.setPose(p));
+live.on("pose", (p) => { map.setPose(p); showStaleNote(); });
 live.on("status", showStatus);
 live.on("estop", showEstop);
 live.on("plan", (p) => map.setPlan(p.poses));

@@ -7,7 +7,7 @@
 
 const TAP_PX = 10;        // a press that moves less than this is a tap
 const HIT_PX = 24;        // a tap this close to a waypoint marker picks it
-const STALE_AGE_S = 1.5;  // a pose older than this (ROS age or since it came) greys the robot
+const STALE_AGE_S = 1.5;  // a pose this old when the server read it greys the robot
 const MIN_SCALE = 2, MAX_SCALE = 800;
 
 export class MapView {
@@ -49,8 +49,11 @@ export class MapView {
   }
 
   setPose(pose) {
-    if (!pose) { this.robot = null; return; }
-    this.robot = {x: pose.x, y: pose.y, yaw: pose.yaw, age: pose.age || 0, at: performance.now()};
+    if (!pose) {  // no pose now: keep the last one on the map, greyed
+      if (this.robot) this.robot.age = Infinity;
+      return;
+    }
+    this.robot = {x: pose.x, y: pose.y, yaw: pose.yaw, age: pose.age || 0};
     if (!this.drawn) this.drawn = {x: pose.x, y: pose.y, yaw: pose.yaw};
     if (!this.meta && !this.userMoved && !this.robotSeen) { this.robotSeen = true; this.fit(); }
   }
@@ -62,10 +65,10 @@ export class MapView {
     if (!this.meta && !this.userMoved) this.fit();
   }
 
+  /** Stale: the server's pose was old when read (pose events come only when it moves, so the
+   *  time since the last one says nothing), or the page has lost the robot. */
   robotStale() {
-    if (!this.robot) return true;
-    const since = (performance.now() - this.robot.at) / 1000;
-    return this.robot.age + since > STALE_AGE_S || this.offline;
+    return !this.robot || this.robot.age > STALE_AGE_S || Boolean(this.offline);
   }
 
   // ---- view ----------------------------------------------------------------------------

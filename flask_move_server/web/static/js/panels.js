@@ -108,8 +108,5 @@ export function initPanels(context) {
   $("go-idle").onclick = () => {
     if (window.confirm("Stop mapping or navigation?")) switchTo({mode: "idle"});
   };
-  $("relocalize").onclick = () => {
-    context.setGesture("pose");
-    context.report(new Error("Press where the robot is on the map and drag the way it faces."));
-  };
+  $("relocalize").onclick = () => context.setGesture("pose");
 }
