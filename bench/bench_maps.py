@@ -8,6 +8,11 @@ middle: outer walls, four rooms with doors, furniture blocks, and a ragged edge
 of unknown where the laser did not reach. Targets (issue 12): first render
 <= 150 ms, a repeat <= 5 ms.
 
+The live path (``GET /map/image`` while mapping) is measured too: the
+canvas as an OccupancyGrid's wire bytes (what rospy.AnyMsg hands over),
+decoded by ``maps.wire`` versus genpy's ``deserialize`` (the int tuple), and
+MapService's first render and its repeat (the ETag check a 304 costs).
+
 Prints a markdown table (docs/performance.md, section Maps).
 """
 
@@ -24,6 +29,8 @@ sys.path.insert(0, ROOT)
 
 from flask_move_server.maps import mapfile, render  # noqa: E402
 from flask_move_server.maps.catalogue import MapCatalogue  # noqa: E402
+from flask_move_server.maps.service import MapService  # noqa: E402
+from flask_move_server.maps.wire import decode  # noqa: E402
 
 SIZE, RESOLUTION = 4000, 0.05
 FLAT_COL, FLAT_ROW, FLAT_W, FLAT_H = 1900, 1850, 600, 400
@@ -78,6 +85,8 @@ def main(argv=None):
     med, top, _ = timed(lambda: mapfile.cells_as_bytes(as_tuple), 3)
     rows.append(("int8 tuple -> bytes, per 1 M cells (rospy's OccupancyGrid.data)", med / 2.0, top / 2.0))
 
+    rows.extend(live_rows(grid, args.repeat))
+
     with tempfile.TemporaryDirectory() as folder:
         maps = MapCatalogue(folder)
         med, top, _ = timed(lambda: maps.save("flat", grid, overwrite=True), max(3, args.repeat // 3))
@@ -94,6 +103,69 @@ def main(argv=None):
     print()
     print("image: {} x {} px, PNG {} bytes, crop origin ({:.2f}, {:.2f})".format(
         image.width, image.height, len(image.png), image.origin_x, image.origin_y))
+
+
+def wire_bytes(grid):
+    """The canvas as a serialized nav_msgs/OccupancyGrid (genpy), as the map topic carries it."""
+    import io
+    from array import array
+
+    from nav_msgs.msg import OccupancyGrid
+
+    msg = OccupancyGrid()
+    msg.header.frame_id = "map"
+    msg.info.resolution = grid.resolution
+    msg.info.width, msg.info.height = grid.width, grid.height
+    msg.info.origin.position.x, msg.info.origin.position.y = grid.origin_x, grid.origin_y
+    msg.info.origin.orientation.w = 1.0
+    msg.data = array("b", grid.cells)
+    buff = io.BytesIO()
+    msg.serialize(buff)
+    return buff.getvalue()
+
+
+class LiveMap:
+    """A map source holding wire bytes and decoding them on demand, as ros/map_source.MapSource does."""
+
+    def __init__(self, raw):
+        self.raw, self.version, self.context = raw, 1, {"mode": "mapping", "map": None}
+
+    def held_version(self):
+        return self.version
+
+    def current(self):
+        return self.version, decode(self.raw)[1]
+
+
+class _Store:
+    path = "/dev/null"
+
+    def when_changed(self, callback):
+        pass
+
+
+def live_rows(grid, repeat):
+    """The live map: decode (ours vs genpy), MapService's first image and its repeat."""
+    from nav_msgs.msg import OccupancyGrid
+
+    raw = wire_bytes(grid)
+    rows = []
+    med, top, _ = timed(lambda: decode(raw), repeat)
+    rows.append(("decode the map message's wire bytes (maps.wire)", med, top))
+    med, top, _ = timed(lambda: OccupancyGrid().deserialize(raw), 3)
+    rows.append(("genpy OccupancyGrid.deserialize, for comparison (int tuple)", med, top))
+
+    def first_image():
+        service = MapService(MapCatalogue(tempfile.gettempdir()), _Store(), LiveMap(raw))
+        return service, service.live_image()
+
+    med, top, (service, _) = timed(first_image, repeat)
+    rows.append(("GET /map/image, first: decode + render", med, top))
+    med, top, _ = timed(service.live_image, repeat)
+    rows.append(("GET /map/image, repeat (cached by version)", med, top))
+    med, top, _ = timed(service.live_etag, repeat)
+    rows.append(("GET /map/image with If-None-Match: the ETag check (304)", med, top))
+    return rows
 
 
 if __name__ == "__main__":

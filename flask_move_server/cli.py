@@ -114,7 +114,9 @@ class Server:
         self.events = EventBus()
         stack.callback(self.events.close)  # closed last of all: streams end after the robot stopped
         robot = self._build_robot(stack)
-        app = create_app(self.config, robot, store, token=self.config.resolved_token(), events=self.events)
+        maps = self._build_maps(stack, store)
+        app = create_app(self.config, robot, store, token=self.config.resolved_token(), events=self.events,
+                         maps=maps)
         self.http = HttpServer(app, self.config.server)
         stack.callback(self.http.close)
         stack.callback(robot.stop)
@@ -124,6 +126,22 @@ class Server:
         self._advertise(stack)
         self._node.start()
         return self
+
+    def _build_maps(self, stack, store):
+        """The map in use (from the map topic), the maps folder, and the waypoints following the active map."""
+        from flask_move_server.maps.catalogue import MapCatalogue
+        from flask_move_server.maps.service import MapService
+        from flask_move_server.ros.map_source import MapSource
+
+        cfg = self.config
+        catalogue = MapCatalogue(cfg.maps_folder())
+        for path in catalogue.remove_leftovers():
+            log.info("removed %s, left by a map save that was interrupted", path)
+        source = MapSource(self._node, cfg.maps.topic, self.events)
+        stack.callback(source.close)
+        self.maps = MapService(catalogue, store, source, modes=getattr(self, "modes", None), events=self.events,
+                               margin=cfg.maps.image_margin, save_timeout=cfg.maps.save_timeout)
+        return self.maps
 
     def _advertise(self, stack):
         """Announce the API over mDNS with the real port; withdrawn first on close (goodbye packets)."""

@@ -13,7 +13,7 @@ import sys
 import time
 import traceback
 
-from flask_move_server import __version__
+from flask_move_server import __version__, client_maps
 from flask_move_server.api_client import DEFAULT_TIMEOUT, DEFAULT_URL, ExitStatus, RobotClient, dumps, waypoint_path
 from flask_move_server.client_text import LiveLine, describe_status, progress, waypoint_table, xy_yaw
 from flask_move_server.errors import ClientError
@@ -213,6 +213,7 @@ def build_parser():
     p.add_argument("--json", action="store_true", help="the raw JSON of GET /status")
     p.set_defaults(run=cmd_status)
     _waypoints_parser(sub)
+    client_maps.add_parser(sub)
     p = sub.add_parser("teleop", help="drive at LIN m/s and ANG rad/s for the deadman time")
     p.add_argument("linear", type=_finite, metavar="LIN")
     p.add_argument("angular", type=_finite, metavar="ANG")

@@ -237,3 +237,9 @@ class NoMap(MoveServerError, LookupError):
     """No map is published on the map topic (nothing is mapping or serving a map)."""
 
     code = "no_map"
+
+
+class MapNotReceived(MoveServerError, TimeoutError):
+    """No map arrived on the map topic in time to save it (is mapping running?)."""
+
+    code = "no_map_received"

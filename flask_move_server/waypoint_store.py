@@ -40,9 +40,48 @@ class WaypointStore:
         self._loaded = False
         self._stamp = None
         self._problem = None
+        self.version = 0  # counts the changes of the set served: saves, reloads, use_file
+        self._announced = 0
+        self._listeners = []
         waypoints_file.remove_leftovers(self.path, lock_timeout)
         with self._lock:
             self._refresh(strict=True)
+
+    def use_file(self, path):
+        """Serve the waypoints of ``path`` from now on (the active map's, or the single file).
+
+        The same guarantees hold for the new file (lock, ``.bak``, reload on external edits). A
+        missing file is an empty set, created by the first change; a broken one is reported as
+        :attr:`problem` and refuses changes until fixed, as at start-up, but never stops the switch.
+        """
+        path = os.path.abspath(path)
+        with self._lock:
+            if path == self.path:
+                return
+            log.info("waypoints: now serving %s", path)
+            self.path = path
+            self._waypoints, self._good_text, self._loaded = {}, None, False
+            self._stamp = self._problem = None
+            self.version += 1
+            self._refresh()
+        self._announce()
+
+    def when_changed(self, callback):
+        """Call ``callback(version)`` after the served set changed (outside the store's lock)."""
+        self._listeners.append(callback)
+
+    def _announce(self):
+        """Tell the listeners about changes not told yet; called after the lock is released."""
+        with self._lock:
+            version = self.version
+            if version == self._announced:
+                return
+            self._announced = version
+        for callback in list(self._listeners):
+            try:
+                callback(version)
+            except Exception:  # a listener's bug must not fail a save that succeeded
+                log.exception("waypoints listener failed")
 
     # reading ---------------------------------------------------------------
 
@@ -50,7 +89,9 @@ class WaypointStore:
         """Every waypoint, in file order."""
         with self._lock:
             self._refresh()
-            return list(self._waypoints.values())
+            found = list(self._waypoints.values())
+        self._announce()
+        return found
 
     def get(self, name):
         """The waypoint called ``name``; UnknownWaypoint with close names if none."""
@@ -109,6 +150,8 @@ class WaypointStore:
             yield waypoints
             self._save(waypoints)
             self._waypoints = waypoints
+            self.version += 1
+        self._announce()
 
     # the file ----------------------------------------------------------------
 
@@ -132,6 +175,7 @@ class WaypointStore:
             return
         if self._stamp is not None:
             log.info("reloaded %s: it changed on disk (%d waypoints)", self.path, len(waypoints))
+            self.version += 1
         self._waypoints, self._good_text, self._loaded = waypoints, text, True
         self._stamp, self._problem = stamp, None
 

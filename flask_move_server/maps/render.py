@@ -136,6 +136,11 @@ class ImageCache:
         self._images = OrderedDict()
         self._lock = threading.Lock()
 
+    def get(self, version):
+        """The cached image of ``version``, or None (nothing is rendered)."""
+        with self._lock:
+            return self._images.get(version)
+
     def image(self, version, make):
         """The image of ``version``; ``make()`` renders it on a miss (outside the lock)."""
         with self._lock:

@@ -9,6 +9,7 @@ from flask import Blueprint, Flask, Response, send_from_directory
 from flask_move_server.events import EventBus
 from flask_move_server.web import auth, error_handlers, guard
 from flask_move_server.web.estop import estop
+from flask_move_server.web.maps import maps_api
 from flask_move_server.web.openapi import description
 from flask_move_server.web.routes import WaypointNameConverter, api
 
@@ -23,8 +24,14 @@ class UntypedResponse(Response):
     default_mimetype = None
 
 
-def create_app(config, robot, store, token=None, events=None):
-    """Build the WSGI app serving ``robot`` and the waypoints in ``store``; ``events``: the server's bus."""
+def create_app(config, robot, store, token=None, events=None, maps=None):
+    """Build the WSGI app serving ``robot`` and the waypoints in ``store``; ``events``: the server's bus.
+
+    ``maps``: the :class:`~flask_move_server.maps.service.MapService` behind ``/map`` and ``/maps``
+    (default: the configured maps folder, no live map, no mode manager).
+    """
+    events = events if events is not None else EventBus()
+    maps = maps if maps is not None else _folder_only_maps(config, store, events)
     app = Flask(__name__, static_folder="static", static_url_path="/static")
     app.response_class = UntypedResponse
     app.url_map.converters["waypoint"] = WaypointNameConverter
@@ -32,16 +39,25 @@ def create_app(config, robot, store, token=None, events=None):
     app.config["MAX_CONTENT_LENGTH"] = config.server.max_body_bytes
     app.json.sort_keys = False
     app.extensions["flask_move_server"] = {
-        "config": config, "robot": robot, "store": store, "events": events if events is not None else EventBus()}
+        "config": config, "robot": robot, "store": store, "events": events, "maps": maps}
     error_handlers.init_app(app)
     guard.init_app(app, config)  # before auth: it protects robots without a token too
     auth.init_app(app, token)
     app.register_blueprint(api)
     app.register_blueprint(estop)
+    app.register_blueprint(maps_api)
     app.register_blueprint(description)
     if config.server.static:
         _add_page(app)
     return app
+
+
+def _folder_only_maps(config, store, events):
+    from flask_move_server.maps.catalogue import MapCatalogue
+    from flask_move_server.maps.service import MapService
+
+    return MapService(MapCatalogue(config.maps_folder()), store, events=events, margin=config.maps.image_margin,
+                      save_timeout=config.maps.save_timeout)
 
 
 def _add_page(app):

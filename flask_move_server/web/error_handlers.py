@@ -41,6 +41,7 @@ STATUS = (
     (errors.NavigationUnavailable, 503),
     (errors.DriveError, 503),
     (errors.ShuttingDown, 503),
+    (errors.MapNotReceived, 503),
 )
 
 _HTTP_CODES = {

@@ -11,19 +11,22 @@ waypoints or state.
 from flask import Blueprint, current_app, jsonify
 
 from flask_move_server import __version__
+from flask_move_server.maps.catalogue import MAP_NAME_RULE
 from flask_move_server.waypoints import NAME_RULE, POSITION_LIMIT, YAW_LIMIT
 
 description = Blueprint("openapi", __name__)
 
 ERROR_CODES = {
-    400: "bad_request, bad_waypoint: a malformed body, field, name or coordinate",
+    400: "bad_request, bad_waypoint, bad_map_name: a malformed body, field, name or coordinate",
     401: "unauthorized: the token is missing or wrong (a token is configured)",
     403: "unknown_host, forbidden_origin: a name the robot does not have, or another site's web page",
-    404: "unknown_waypoint (with suggestions), not_found: no such waypoint or endpoint",
+    404: "unknown_waypoint (with suggestions), unknown_map, no_map, not_found: no such waypoint, map or endpoint",
     405: "method_not_allowed: the path takes other methods (the Allow header lists them)",
-    409: "navigation_failed (with state), no_pose, estop_latched, estop_button_pressed, waypoints_file",
+    409: "navigation_failed (with state), no_pose, estop_latched, estop_button_pressed, waypoints_file, "
+         "wrong_mode, map_exists, map_in_use, mode_switching, modes_off",
     413: "body_too_large: the body is over server.max_body_bytes",
-    503: "ros_unavailable, move_base_unavailable, drive_error, shutting_down, waypoints_locked",
+    503: "ros_unavailable, move_base_unavailable, drive_error, shutting_down, waypoints_locked, map_file, "
+         "no_map_received",
 }
 
 
@@ -52,6 +55,7 @@ def build(config):
                                 "move_base": {"enum": ["ready", "unavailable"]}}))}))},
         "/openapi.json": {"get": _open(_operation("This description", None, {200: _json({"type": "object"})}))},
     }
+    paths.update(_maps())
     paths.update(_static_files())
     if config.server.static:
         paths.update(_page())
@@ -112,6 +116,54 @@ def _waypoint_item():
     for operation in item.values():
         operation["parameters"] = [name]
     return item
+
+
+def _maps():
+    """``/map``, ``/map/image``, ``/maps`` and ``/maps/{name}`` (docs/api.md, "Maps")."""
+    name = {"name": "name", "in": "path", "required": True, "schema": _name(),
+            "description": "a map's name: " + MAP_NAME_RULE}
+    info = _object({"name": {"type": "string"}, "width": {"type": "integer", "nullable": True},
+                    "height": {"type": "integer", "nullable": True},
+                    "resolution": {"type": "number", "nullable": True},
+                    "origin": {"type": "array", "items": {"type": "number"}, "nullable": True},
+                    "modified": {"type": "string"}, "waypoints": {"type": "integer"},
+                    "active": {"type": "boolean"}, "problem": {"type": "string"}})
+    live = _object({"version": {"type": "integer"}, "resolution": {"type": "number"},
+                    "origin": {"type": "array", "items": {"type": "number"}}, "width": {"type": "integer"},
+                    "height": {"type": "integer"}, "empty": {"type": "boolean"},
+                    "mode": {"type": "string", "nullable": True}, "map": {"type": "string", "nullable": True}})
+    save = _object({"name": _name("the new map's name"), "overwrite": {"type": "boolean"},
+                    "then": {"enum": ["navigation"]}}, ["name"])
+    saved = _json(_object({"status": {"enum": ["ok"]}, "map": info, "adopted_waypoints": {"type": "boolean"},
+                           "mode": {"type": "object"}, "mode_error": {"type": "object"}}), "saved")
+    item = {
+        "get": _operation("One saved map", None, {200: _json(info)}, errors=(400, 404, 503)),
+        "delete": _operation("Delete a saved map, its image and waypoints (not the one in use)", None,
+                             {204: {"description": "deleted"}}, errors=(400, 404, 409, 503)),
+        "patch": _operation("Rename a saved map with its waypoints (not the one in use)",
+                            _object({"name": _name("the new name")}, ["name"]),
+                            {200: _ok({"map": info})}, errors=(404, 409, 503)),
+    }
+    image = _operation("A saved map's image, cropped to what is known", None, _PNG, errors=(400, 404, 503))
+    for operation in list(item.values()) + [image]:
+        operation["parameters"] = [name]
+    return {
+        "/map": {"get": _operation("The map in use now: version, and the crop /map/image serves", None,
+                                   {200: _json(live)}, errors=(404,))},
+        "/map/image": {"get": _operation("The map in use now as a PNG (ETag; If-None-Match answers 304)", None,
+                                         _PNG, errors=(404,))},
+        "/maps": {"get": _operation("The saved maps, and the one in use", None, {200: _json(_object(
+                      {"maps": {"type": "array", "items": info}, "active": {"type": "string", "nullable": True}}))}),
+                  "post": _operation("Save the map being made (mapping mode only)", save, {201: saved},
+                                     errors=(409, 503))},
+        "/maps/{name}": item,
+        "/maps/{name}/image": {"get": image},
+    }
+
+
+_PNG = {200: {"description": "a greyscale PNG, ETag = the map's version",
+              "content": {"image/png": {"schema": {"type": "string", "format": "binary"}}}},
+        304: {"description": "not modified: the If-None-Match ETag is the map's version"}}
 
 
 def _page():

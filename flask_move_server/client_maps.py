@@ -1,0 +1,98 @@
+"""``robotctl map …``: the robot's maps from a terminal (``save``, ``list``, ``rm``).
+
+``map save`` sends ``POST /maps`` with a request timeout long enough for the
+server to wait ``maps.save_timeout`` for a map and write a large one. The mode
+commands (``map start``, ``map use``) join the same ``map`` parser.
+"""
+
+import sys
+from urllib.parse import quote
+
+from flask_move_server.api_client import ExitStatus
+
+SAVE_TIMEOUT = 60.0  # s: the server waits up to maps.save_timeout (10 s) for a map, then writes it
+
+
+def map_path(name):
+    """The API path of map ``name`` (spaces and the like escaped)."""
+    return "/maps/" + quote(name, safe="")
+
+
+def cmd_map(client, args):
+    """Dispatch ``robotctl map ACTION``."""
+    return ACTIONS[args.action or "list"](client, args)
+
+
+def cmd_save(client, args):
+    body = {"name": args.name}
+    if args.overwrite:
+        body["overwrite"] = True
+    if args.then_navigate:
+        body["then"] = "navigation"
+    answer = client.request("POST", "/maps", body, timeout=max(client.timeout, SAVE_TIMEOUT))
+    info = answer.get("map") or {}
+    _say("saved map {} ({}{}).".format(args.name, _size(info), ", with a copy of the waypoints"
+                                       if answer.get("adopted_waypoints") else ""))
+    if "mode_error" in answer:
+        _say("robotctl: saved, but not switched to it: {}".format(answer["mode_error"].get("message")), sys.stderr)
+        return ExitStatus.ERROR
+    if args.then_navigate:
+        _say("switching to navigation on {} ('robotctl status' follows it).".format(args.name))
+    return ExitStatus.OK
+
+
+def cmd_list(client, args):
+    answer = client.get("/maps")
+    maps = answer.get("maps") or []
+    if not maps:
+        _say("no maps saved yet: 'robotctl map start', drive around, then 'robotctl map save NAME'.")
+        return ExitStatus.OK
+    for line in map_table(maps, answer.get("active")):
+        _say(line)
+    return ExitStatus.OK
+
+
+def cmd_rm(client, args):
+    client.delete(map_path(args.name))
+    _say("removed map {} (its image and waypoints too).".format(args.name))
+    return ExitStatus.OK
+
+
+ACTIONS = {"save": cmd_save, "list": cmd_list, "rm": cmd_rm}
+
+
+def map_table(maps, active=None):
+    """Aligned rows: name (``*`` for the map in use), size in metres, waypoints, last change."""
+    width = max(4, max(len(m["name"]) for m in maps))
+    rows = ["  {:<{w}}  {:>15}  {:>9}  {}".format("NAME", "SIZE [m]", "WAYPOINTS", "MODIFIED", w=width)]
+    for m in maps:
+        mark = "*" if m["name"] == active else " "
+        size = m.get("problem") and "broken" or _size(m)
+        rows.append("{} {:<{w}}  {:>15}  {:>9}  {}".format(mark, m["name"], size, m.get("waypoints", 0),
+                                                             m.get("modified", ""), w=width))
+    return rows
+
+
+def _size(info):
+    if not info.get("width") or not info.get("resolution"):
+        return "size unknown"
+    return "{:.1f} x {:.1f}".format(info["width"] * info["resolution"], info["height"] * info["resolution"])
+
+
+def add_parser(sub):
+    """``robotctl map save|list|rm`` on robotctl's subcommand parser ``sub``."""
+    p = sub.add_parser("map", help="the robot's maps: save, list, rm")
+    p.set_defaults(run=cmd_map, action="list")
+    actions = p.add_subparsers(dest="action", metavar="ACTION")
+    save = actions.add_parser("save", help="save the map being made as NAME (in mapping mode)")
+    save.add_argument("name")
+    save.add_argument("--overwrite", action="store_true", help="replace a map saved under NAME")
+    save.add_argument("--then-navigate", action="store_true", help="then navigate on it (switch mode)")
+    actions.add_parser("list", help="the saved maps; * marks the one in use")
+    rm = actions.add_parser("rm", help="delete map NAME with its image and waypoints")
+    rm.add_argument("name")
+    return p
+
+
+def _say(text, stream=None):
+    print(text, file=stream or sys.stdout, flush=True)

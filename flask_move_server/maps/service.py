@@ -1,0 +1,214 @@
+"""What the map routes call: the map in use and its image, the maps folder, saving, per-map waypoints.
+
+:class:`MapService` joins the parts the web layer must not know: the live map
+(a :class:`~flask_move_server.ros.map_source.MapSource`, or anything with
+``held_version()``, ``current()``, ``latest(timeout)``, ``context``), the
+maps folder (:class:`~flask_move_server.maps.catalogue.MapCatalogue`), the
+mode manager (``status()``, ``active_map``, ``switch(mode, map_name)``; None
+when nothing manages the stack) and the waypoint store.
+
+Per-map waypoints: the store follows the mode's map. On every ``mode`` event
+it serves ``NAME.waypoints.yaml`` of the map named there, or the single
+``waypoints.file`` when none is (idle, mapping, navigation on the stack's
+own map). Every change of the served set publishes a ``waypoints`` event
+``{"map", "version"}``. The first map saved into an empty folder adopts a
+copy of the single file's waypoints (the single file is never moved or
+emptied). Pure: no rospy, no Flask.
+"""
+
+import logging
+import os
+import threading
+import uuid
+
+from flask_move_server import waypoints_file
+from flask_move_server.errors import (
+    MapExists,
+    MapFileError,
+    ModesOff,
+    MoveServerError,
+    NoMap,
+    WrongMode,
+)
+from flask_move_server.maps import render
+from flask_move_server.maps.catalogue import check_map_name
+
+log = logging.getLogger(__name__)
+
+
+class MapService:
+    """The live map, the saved maps, and which waypoints file is served."""
+
+    def __init__(self, catalogue, store, source=None, modes=None, events=None, margin=1.0, save_timeout=10.0):
+        self.catalogue = catalogue
+        self.store = store
+        self.source = source
+        self.modes = modes
+        self.events = events
+        self.margin = margin
+        self.save_timeout = save_timeout
+        self.single_file = store.path
+        self.waypoints_map = None  # the map whose waypoints the store serves (None: the single file)
+        self._run = uuid.uuid4().hex[:8]  # in the live ETag: versions restart at 1 with the process
+        self._live = render.ImageCache(size=2)
+        self._saved = render.ImageCache(size=8)
+        self._save_lock = threading.Lock()
+        store.when_changed(self._waypoints_changed)
+        if source is not None:
+            source.mode_of = self._managed_mode
+        if events is not None:
+            events.listen("mode", self._on_mode)
+            events.publish("waypoints", {"map": None, "version": store.version})  # for streams opened from now
+        if modes is not None:
+            self.use_modes(modes)
+
+    # the mode's map and its waypoints ------------------------------------------------------
+
+    def use_modes(self, modes):
+        """Take ``modes`` as the mode manager (also after construction) and serve its map's waypoints."""
+        self.modes = modes
+        self.follow(modes.status().get("map"))
+
+    @property
+    def active_map(self):
+        """The saved map in use now (None: no named map, or no mode manager)."""
+        return self.modes.active_map if self.modes is not None else None
+
+    def mode(self):
+        """``{"mode", "map"}`` now: the mode manager's, else the last ``mode`` event's."""
+        managed = self._managed_mode()
+        if managed is not None:
+            return managed
+        if self.source is not None:
+            return self.source.context
+        return {"mode": None, "map": None}
+
+    def _managed_mode(self):
+        if self.modes is None:
+            return None
+        status = self.modes.status()
+        return {"mode": status.get("mode"), "map": status.get("map")}
+
+    def _on_mode(self, status):
+        self.follow(status.get("map"))
+
+    def follow(self, name):
+        """Serve the waypoints of map ``name`` (None: the single waypoints file)."""
+        path = self.catalogue.waypoints_path(name) if name else self.single_file
+        self.waypoints_map = name
+        self.store.use_file(path)
+
+    def _waypoints_changed(self, version):
+        if self.events is not None:
+            self.events.publish("waypoints", {"map": self.waypoints_map, "version": version})
+
+    # the live map --------------------------------------------------------------------------
+
+    def live_etag(self):
+        """The ETag of ``/map/image`` now, without rendering; NoMap when no map is published."""
+        return "{}-{}".format(self._run, self._source().held_version())
+
+    def live_image(self):
+        """``(etag, MapImage)`` of the map in use (rendered once per version); NoMap when none."""
+        version = self._source().held_version()
+        image = self._live.get(version)
+        if image is None:
+            version, grid = self._source().current()
+            image = self._live.image(version, lambda: render.render(grid, self.margin, version=str(version)))
+        return "{}-{}".format(self._run, version), image
+
+    def live_metadata(self):
+        """``GET /map``: the crop ``/map/image`` serves (pixel → metres), its version, the mode and map."""
+        _, image = self.live_image()
+        meta = image.metadata()
+        meta["version"] = int(image.version)
+        meta.update(self.mode())
+        return meta
+
+    def _source(self):
+        if self.source is None:
+            raise NoMap("This server does not follow a map topic, so it has no map in use.")
+        return self.source
+
+    # the maps folder -----------------------------------------------------------------------
+
+    def list(self):
+        return {"maps": [info.as_dict() for info in self.catalogue.list()], "active": self.active_map}
+
+    def describe(self, name):
+        return dict(self.catalogue.describe(name).as_dict(), active=name == self.active_map)
+
+    def saved_image(self, name):
+        """``(etag, MapImage)`` of a saved map (rendered once per file version)."""
+        version = self.catalogue.version(name)
+        image = self._saved.image(version, lambda: render.render(self.catalogue.load(name), self.margin,
+                                                                 version=version))
+        return version, image
+
+    def saved_etag(self, name):
+        return self.catalogue.version(name)
+
+    def delete(self, name):
+        self.catalogue.delete(name, active=self.active_map)
+
+    def rename(self, old, new):
+        return self.describe(self.catalogue.rename(old, new, active=self.active_map).name)
+
+    # saving --------------------------------------------------------------------------------
+
+    def save(self, name, overwrite=False, then=None):
+        """Save the latest map as ``name`` (mapping mode only); with ``then``, switch to it.
+
+        Checked before waiting for a map: the name, the mode, an existing name. The map
+        files are written atomically; when adopting the waypoints fails, a map new under
+        this name is deleted again, so nothing is left half-saved.
+        """
+        check_map_name(name)
+        self._require_mapping()
+        if then and self.modes is None:
+            raise ModesOff("This server does not switch modes (no mode manager), so it cannot \"then\" switch.")
+        if not overwrite and self.catalogue.exists(name):
+            raise MapExists("A map named {!r} is already saved; send \"overwrite\": true to replace it, "
+                            "or pick another name.".format(name))
+        _, grid = self.source.latest(self.save_timeout)
+        with self._save_lock:
+            first = not self.catalogue.names()
+            existed = self.catalogue.exists(name)
+            self.catalogue.save(name, grid, overwrite=overwrite)
+            adopted = self._adopt_waypoints(name, existed) if first else False
+        result = {"status": "ok", "map": self.describe(name), "adopted_waypoints": adopted}
+        if then:
+            result.update(self._switch_to(name))
+        return result
+
+    def _require_mapping(self):
+        if self.source is None:
+            raise WrongMode("This server follows no map topic, so there is no map being made to save.")
+        if self.modes is None:
+            return  # the stack is run elsewhere: whatever publishes the map is saved
+        mode = self.modes.status().get("mode")
+        if mode != "mapping":
+            raise WrongMode("Saving a map needs mapping mode, and the robot is in {} mode: start mapping first "
+                            "(POST /mode {{\"mode\": \"mapping\"}}, robotctl map start).".format(mode))
+
+    def _adopt_waypoints(self, name, existed):
+        """The first map: a copy of the single file's waypoints, unless the map has its own; True if copied."""
+        target = self.catalogue.waypoints_path(name)
+        try:
+            text = waypoints_file.read(self.single_file)
+            if text is None or os.path.exists(target):
+                return False
+            waypoints_file.atomic_write(target, text)
+            return True
+        except (OSError, MoveServerError) as exc:
+            if not existed:
+                self.catalogue.delete(name)
+            raise MapFileError("Could not copy the waypoints of {} to the new map {!r} ({}); the map was not "
+                               "saved.".format(self.single_file, name, getattr(exc, "strerror", None) or exc)) from exc
+
+    def _switch_to(self, name):
+        """``"then": "navigation"``: switch to the saved map; the save stands even if the switch is refused."""
+        try:
+            return {"mode": self.modes.switch("navigation", name)}
+        except MoveServerError as exc:
+            return {"mode_error": {"error": exc.code, "message": str(exc)}}

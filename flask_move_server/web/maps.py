@@ -1,0 +1,87 @@
+"""Maps over HTTP: the map in use (``/map``, ``/map/image``) and the maps folder (``/maps``).
+
+Routes validate, call the :class:`~flask_move_server.maps.service.MapService`
+found in ``app.extensions["flask_move_server"]["maps"]`` and shape the answer;
+they know nothing of rospy. Images are PNGs with an ``ETag`` (the map's version)
+and ``Cache-Control: no-cache``: a browser asks again each time and gets a 304
+without a byte of image while the map is unchanged.
+"""
+
+from flask import Blueprint, Response, current_app, jsonify, request
+
+from flask_move_server.errors import BadRequest, NoMap
+from flask_move_server.web.body import json_object, text
+
+maps_api = Blueprint("maps", __name__)
+
+THEN = ("navigation",)
+
+
+def _maps():
+    service = current_app.extensions["flask_move_server"].get("maps")
+    if service is None:
+        raise NoMap("This server has no maps folder configured.")
+    return service
+
+
+def _png(etag, make_image):
+    """The image answer: 304 when the client has ``etag`` already (nothing rendered), else the PNG."""
+    if request.if_none_match.contains(etag):
+        response = Response(status=304)
+    else:
+        response = Response(make_image().png, mimetype="image/png")
+    response.set_etag(etag)
+    response.headers["Cache-Control"] = "no-cache"
+    return response
+
+
+@maps_api.route("/map", methods=["GET"])
+def live_map():
+    return jsonify(_maps().live_metadata())
+
+
+@maps_api.route("/map/image", methods=["GET"])
+def live_image():
+    service = _maps()
+    return _png(service.live_etag(), lambda: service.live_image()[1])
+
+
+@maps_api.route("/maps", methods=["GET"])
+def list_maps():
+    return jsonify(_maps().list())
+
+
+@maps_api.route("/maps", methods=["POST"])
+def save_map():
+    data = json_object(("name", "overwrite", "then"))
+    name = text(data, "name")
+    overwrite = data.get("overwrite", False)
+    if not isinstance(overwrite, bool):
+        raise BadRequest("Field 'overwrite' must be true or false.")
+    then = data.get("then")
+    if then is not None and then not in THEN:
+        raise BadRequest("Field 'then' can only be \"navigation\" (switch to the saved map).")
+    return jsonify(_maps().save(name, overwrite=overwrite, then=then)), 201
+
+
+@maps_api.route("/maps/<name>", methods=["GET"])
+def describe_map(name):
+    return jsonify(_maps().describe(name))
+
+
+@maps_api.route("/maps/<name>", methods=["DELETE"])
+def delete_map(name):
+    _maps().delete(name)
+    return "", 204
+
+
+@maps_api.route("/maps/<name>", methods=["PATCH"])
+def rename_map(name):
+    data = json_object(("name",))
+    return jsonify({"status": "ok", "map": _maps().rename(name, text(data, "name"))})
+
+
+@maps_api.route("/maps/<name>/image", methods=["GET"])
+def saved_image(name):
+    service = _maps()
+    return _png(service.saved_etag(name), lambda: service.saved_image(name)[1])

@@ -1,0 +1,35 @@
+"""The real server (``--sim``) serves the map in use and the maps folder: cli's wiring, end to end."""
+
+import signal
+
+import pytest
+
+from flask_move_server.maps.catalogue import MapCatalogue
+from flask_move_server.maps.render import render
+from flask_move_server.sim import occupancy
+from tests.conftest import ROOT, wait_for
+from tests.test_sim_e2e import SimServer
+
+
+@pytest.fixture
+def sim(tmp_path):
+    server = SimServer(tmp_path)
+    yield server
+    server.kill()
+
+
+def test_the_sim_serves_its_map_with_an_etag_and_an_empty_maps_folder(sim, tmp_path):
+    meta = wait_for(lambda: sim.get("/map").ok and sim.get("/map").json(), timeout=20, message="the map")
+    demo = occupancy.load(ROOT + "/config/maps/demo.yaml")
+    expected = render(demo, margin=1.0)
+    assert (meta["width"], meta["height"], meta["resolution"]) == (expected.width, expected.height, 0.05)
+    assert meta["origin"] == pytest.approx([expected.origin_x, expected.origin_y, 0.0])
+    image = sim.get("/map/image")
+    assert image.content == expected.png
+    import requests
+
+    again = requests.get(sim.url + "/map/image", headers={"If-None-Match": image.headers["ETag"]}, timeout=10)
+    assert again.status_code == 304
+    assert sim.get("/maps").json() == {"maps": [], "active": None}
+    assert MapCatalogue(str(tmp_path / "maps")).names() == []
+    assert sim.stop(signal.SIGTERM) == 0
