@@ -101,6 +101,7 @@ class Server:
         self.exit_code = EXIT_OK
         self.http = None
         self.robot = None
+        self.events = None
         self._stack = contextlib.ExitStack()
 
     def start(self):
@@ -115,6 +116,7 @@ class Server:
         stack.callback(self.events.close)  # closed last of all: streams end after the robot stopped
         robot = self._build_robot(stack)
         maps = self._build_maps(stack, store)
+        self._report(stack, robot)
         app = create_app(self.config, robot, store, token=self.config.resolved_token(), events=self.events,
                          maps=maps)
         self.http = HttpServer(app, self.config.server)
@@ -142,6 +144,14 @@ class Server:
         self.maps = MapService(catalogue, store, source, modes=getattr(self, "modes", None), events=self.events,
                                margin=cfg.maps.image_margin, save_timeout=cfg.maps.save_timeout)
         return self.maps
+
+    def _report(self, stack, robot):
+        """The robot's state (pose, status, e-stop, move_base's plan) told on the event bus for GET /events."""
+        from flask_move_server.reporter import Reporter
+        from flask_move_server.ros.plan import PlanRelay
+
+        stack.callback(PlanRelay(self.config.navigation.plan_topic, self.events, self._node).close)
+        stack.callback(Reporter(robot, self.events).start().close)
 
     def _advertise(self, stack):
         """Announce the API over mDNS with the real port; withdrawn first on close (goodbye packets)."""
@@ -221,6 +231,8 @@ class Server:
                 log.info("robot stopped %.1f ms after the signal: goal canceled, teleop ended, motors left %s right %s",
                          (time.monotonic() - received) * 1000, motors.get("left"), motors.get("right"))
         finally:
+            if self.events is not None:
+                self.events.close()  # open /events streams end now, not after waitress's 5 s drain
             raise SystemExit(self.exit_code)
 
     def fatal(self, reason):

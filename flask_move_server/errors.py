@@ -243,3 +243,9 @@ class MapNotReceived(MoveServerError, TimeoutError):
     """No map arrived on the map topic in time to save it (is mapping running?)."""
 
     code = "no_map_received"
+
+
+class TooManyStreams(MoveServerError, RuntimeError):
+    """Every ``GET /events`` stream the server allows (``server.max_streams``) is open already."""
+
+    code = "too_many_streams"

@@ -74,6 +74,7 @@ class EventBus:
         self._subscriptions = []
         self._latest = {}
         self._seq = itertools.count(1)
+        self.closed = False
 
     def publish(self, kind, data):
         """Tell everyone that ``kind`` is now ``data``."""
@@ -99,6 +100,7 @@ class EventBus:
         """A new subscription to ``kinds`` (None: all); with ``replay``, primed with the latest of each."""
         sub = Subscription(self, kinds)
         with self._lock:
+            sub.closed = self.closed  # the server is stopping: a late reader gets nothing more
             self._subscriptions.append(sub)
             latest = [(k, d) for k, d in self._latest.items() if sub.wants(k)] if replay else []
             seq = next(self._seq)
@@ -122,8 +124,9 @@ class EventBus:
                 self._subscriptions.remove(sub)
 
     def close(self):
-        """Close every subscription (the server is stopping). Idempotent."""
+        """Close every subscription (the server is stopping), and any made later. Idempotent."""
         with self._lock:
+            self.closed = True
             subscriptions = list(self._subscriptions)
         for sub in subscriptions:
             sub.close()

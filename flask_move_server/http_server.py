@@ -13,6 +13,11 @@ per queued request. This module builds the server from ``ServerConfig`` with:
 - a stop lane: ``POST /stop`` (and ``/estop``) jumps the request queue, and
   gets a spare thread when every worker is busy (a ``/goto`` with ``wait``
   holds one), so the owner can always stop the robot;
+- a stream lane: each ``GET /events`` stream is served on a thread of its own (at most
+  ``server.max_streams``), never on one of the ``server.threads`` workers, so open pages
+  never delay ``/stop`` or anything else; a stream's unsent output is bounded
+  (``STREAM_BACKLOG``): its writer waits instead, and a peer that takes nothing for
+  ``channel_timeout`` is disconnected; the app can ask whether the peer left;
 - errors in the API's JSON shape wherever waitress answers before the app;
 - a rate-limited summary instead of one ``Task queue depth`` line per request.
 """
@@ -20,17 +25,23 @@ per queued request. This module builds the server from ``ServerConfig`` with:
 import json
 import logging
 import resource
+import socket
 import threading
 import time
 
 from waitress.adjustments import Adjustments
-from waitress.channel import HTTPChannel
+from waitress.channel import ClientDisconnected, HTTPChannel
 from waitress.server import TcpWSGIServer
-from waitress.task import ErrorTask, ThreadedTaskDispatcher
+from waitress.task import ErrorTask, ThreadedTaskDispatcher, WSGITask
+
+from flask_move_server.web.events import PEER_GONE
 
 log = logging.getLogger(__name__)
 
 URGENT = frozenset({("POST", "/stop"), ("POST", "/estop")})
+STREAMS = frozenset({("GET", "/events")})
+STREAM_TYPE = "text/event-stream"
+STREAM_BACKLOG = 64 * 1024  # bytes of a stream's output that may wait unsent before its writer waits
 SPARE_THREADS = 2  # extra threads the stop lane may start when every worker is busy
 QUEUE_LOGGER = "waitress.queue"
 QUEUE_SUMMARY_INTERVAL = 60.0
@@ -62,11 +73,61 @@ class JsonErrorTask(ErrorTask):
         self.write(body)
 
 
+class RobotTask(WSGITask):
+    """A request served by the app; an event stream's unsent writes never pile up.
+
+    Waitress (2.x: ``send_bytes`` is 1) sends each write from the task's thread as it is made,
+    the headers with the first body chunk, so an event goes out when the stream yields it.
+    """
+
+    _streaming = None
+
+    def get_environment(self):
+        environ = super().get_environment()
+        environ[PEER_GONE] = self.channel.peer_gone
+        return environ
+
+    def write(self, data):
+        if self._streaming is None:
+            self._streaming = any(name.lower() == "content-type" and value.startswith(STREAM_TYPE)
+                                  for name, value in self.response_headers)
+        if self._streaming:
+            self.channel.wait_for_backlog(STREAM_BACKLOG)
+        super().write(data)  # sent from this thread at once (waitress 2's send_bytes is 1)
+
+
 class RobotChannel(HTTPChannel):
     """One client connection; remembers when its current request began (for request_timeout)."""
 
+    task_class = RobotTask
     error_task_class = JsonErrorTask
     request_began = None
+
+    def peer_gone(self):
+        """True once the client closed or reset the connection (peeked at, nothing read)."""
+        if not self.connected or self.will_close:
+            return True
+        try:
+            return self.socket.recv(1, socket.MSG_PEEK | socket.MSG_DONTWAIT) == b""
+        except (BlockingIOError, InterruptedError):
+            return False
+        except (OSError, AttributeError):  # reset, or closed by the loop meanwhile
+            return True
+
+    def wait_for_backlog(self, limit):
+        """Block the writing thread while more than ``limit`` bytes wait unsent.
+
+        A peer that has taken nothing for ``channel_timeout`` seconds is disconnected
+        (ClientDisconnected): a phone that walked out of Wi-Fi range frees its thread.
+        """
+        with self.outbuf_lock:
+            while self.connected and self.total_outbufs_len > limit:
+                if time.time() - self.last_activity > self.adj.channel_timeout:
+                    self.will_close = True
+                    self.server.pull_trigger()
+                    raise ClientDisconnected("the client took nothing for {:.0f} s".format(self.adj.channel_timeout))
+                self.server.pull_trigger()
+                self.outbuf_lock.wait(1.0)
 
     def received(self, data):
         if data and self.request is None:
@@ -98,13 +159,18 @@ class RobotChannel(HTTPChannel):
 class StopLaneDispatcher(ThreadedTaskDispatcher):
     """Worker threads, with ``POST /stop`` served first and never stuck behind busy workers."""
 
-    def __init__(self):
+    def __init__(self, max_streams=0):
         super().__init__()
         self._spares = threading.BoundedSemaphore(SPARE_THREADS)
+        self._streams = threading.BoundedSemaphore(max_streams) if max_streams else None
 
     def add_task(self, task):
+        if _is_stream(task) and self._streams is not None and self._streams.acquire(blocking=False):
+            threading.Thread(target=self._serve_stream, args=(task,), name="waitress-event-stream",
+                             daemon=True).start()
+            return
         if not _is_urgent(task):
-            super().add_task(task)
+            super().add_task(task)  # a stream past max_streams too: the app answers it 503 at once
             return
         with self.lock:
             idle = len(self.threads) - self.stop_count - self.active_count
@@ -122,13 +188,29 @@ class StopLaneDispatcher(ThreadedTaskDispatcher):
         finally:
             self._spares.release()
 
+    def _serve_stream(self, task):
+        try:
+            task.service()
+        except BaseException:
+            self.logger.exception("Exception when servicing %r", task)
+        finally:
+            self._streams.release()
 
-def _is_urgent(channel):
+
+def _request_line(channel):
     requests = getattr(channel, "requests", None)
     if not requests:
-        return False
+        return None
     request = requests[0]
-    return (getattr(request, "command", None), getattr(request, "path", None)) in URGENT
+    return getattr(request, "command", None), getattr(request, "path", None)
+
+
+def _is_urgent(channel):
+    return _request_line(channel) in URGENT
+
+
+def _is_stream(channel):
+    return _request_line(channel) in STREAMS
 
 
 class RobotWSGIServer(TcpWSGIServer):
@@ -220,7 +302,7 @@ class HttpServer:
         self.adj = Adjustments(**waitress_settings(server_config))
         _raise_fd_limit(2 * server_config.connection_limit + 256)
         self._map = {}
-        self.dispatcher = StopLaneDispatcher()
+        self.dispatcher = StopLaneDispatcher(server_config.max_streams)
         self.dispatcher.set_thread_count(self.adj.threads)
         self._servers = [self._listen(app, sockinfo, server_config) for sockinfo in self.adj.listen]
         self.effective_host = self._servers[0].effective_host

@@ -9,6 +9,7 @@ from flask import Blueprint, Flask, Response, send_from_directory
 from flask_move_server.events import EventBus
 from flask_move_server.web import auth, error_handlers, guard
 from flask_move_server.web.estop import estop
+from flask_move_server.web.events import events_api
 from flask_move_server.web.maps import maps_api
 from flask_move_server.web.openapi import description
 from flask_move_server.web.routes import WaypointNameConverter, api
@@ -46,6 +47,7 @@ def create_app(config, robot, store, token=None, events=None, maps=None):
     app.register_blueprint(api)
     app.register_blueprint(estop)
     app.register_blueprint(maps_api)
+    app.register_blueprint(events_api)
     app.register_blueprint(description)
     if config.server.static:
         _add_page(app)

@@ -37,6 +37,7 @@ STATUS = (
     (errors.WrongMode, 409),
     (errors.MapFileError, 503),
     (errors.StackFailed, 503),
+    (errors.TooManyStreams, 503),
     (errors.RosUnavailable, 503),
     (errors.NavigationUnavailable, 503),
     (errors.DriveError, 503),

@@ -26,7 +26,7 @@ ERROR_CODES = {
          "wrong_mode, map_exists, map_in_use, mode_switching, modes_off",
     413: "body_too_large: the body is over server.max_body_bytes",
     503: "ros_unavailable, move_base_unavailable, drive_error, shutting_down, waypoints_locked, map_file, "
-         "no_map_received",
+         "no_map_received, too_many_streams",
 }
 
 
@@ -53,6 +53,7 @@ def build(config):
         "/health": {"get": _open(_operation("Is the server up, ROS connected, move_base ready?", None, {
             200: _json(_object({"status": {"enum": ["ok"]}, "ros": {"type": "string"},
                                 "move_base": {"enum": ["ready", "unavailable"]}}))}))},
+        "/events": {"get": _events()},
         "/openapi.json": {"get": _open(_operation("This description", None, {200: _json({"type": "object"})}))},
     }
     paths.update(_maps())
@@ -164,6 +165,14 @@ def _maps():
 _PNG = {200: {"description": "a greyscale PNG, ETag = the map's version",
               "content": {"image/png": {"schema": {"type": "string", "format": "binary"}}}},
         304: {"description": "not modified: the If-None-Match ETag is the map's version"}}
+
+
+def _events():
+    stream = {"description": "Server-Sent Events: 'event: <kind>' (pose, status, estop, plan, mode, map, "
+                             "waypoints) and 'data: <one JSON object>', the latest of each kind first; "
+                             "': heartbeat' comments. docs/api.md lists each kind's fields.",
+              "content": {"text/event-stream": {"schema": {"type": "string"}}}}
+    return _operation("The robot's state as it changes (Server-Sent Events)", None, {200: stream}, errors=(503,))
 
 
 def _page():

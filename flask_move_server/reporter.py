@@ -1,0 +1,122 @@
+"""The reporter: what the robot is doing, told on the event bus as it changes.
+
+One thread samples the Robot facade (``robot.status()``) ``rate`` times a second and
+publishes, on the :class:`~flask_move_server.events.EventBus`:
+
+- ``pose`` (``{"x", "y", "yaw", "frame", "age", "source"}`` as ``/status`` shows it, or None)
+  when the robot moved (1 mm or 0.001 rad), when it became known or unknown, and once a
+  second at rest (so a page sees the pose's ``age`` grow when localization stops);
+- ``status`` (``{"navigation", "teleop", "motors", "ros"}``) when any of it changed,
+  ignoring the fields that tick by themselves (teleop ``remaining``, motors ``command_age``,
+  odometry) and the distance left below 5 cm;
+- ``estop`` (the ``/status`` estop dict) when the latch changed; an engage is also told at
+  once from the latch's own callback, not 100 ms later.
+
+Sampling instead of hooking every part keeps the parts unaware of the bus, and costs one
+``robot.status()`` per tick (a tf lookup and a few locks; docs/performance.md has the CPU).
+Pure: imports neither rospy nor Flask; what it calls may.
+"""
+
+import logging
+import threading
+import time
+
+log = logging.getLogger(__name__)
+
+RATE = 10.0  # samples a second: the page draws the robot at this rate while it moves
+POSE_REFRESH = 1.0  # s: a pose at rest is told again this often, its age updated
+MOVED = 0.001  # m and rad: a smaller change of pose is not news
+DISTANCE_STEP = 0.05  # m: distance_remaining changes smaller than this are not news
+
+# Fields that change on every sample without anything happening: left out of the comparison.
+_TICKING = {"teleop": ("remaining",), "motors": ("command_age", "odom")}
+STATUS_PARTS = ("navigation", "teleop", "motors", "ros")
+
+
+class Reporter:
+    """Samples ``robot`` in a thread and publishes what changed on ``events``."""
+
+    def __init__(self, robot, events, rate=RATE, clock=time.monotonic):
+        self._robot = robot
+        self._events = events
+        self._period = 1.0 / rate
+        self._clock = clock
+        self._last = {"pose": None, "status": None, "estop": None}
+        self._pose_told_at = None
+        self._lock = threading.Lock()  # one sample at a time (the thread, and the e-stop callback)
+        self._stop = threading.Event()
+        self._thread = None
+        estop = getattr(robot, "estop", None)
+        if estop is not None:
+            estop.when_engaged(lambda source: self._tell_estop(robot.estop_status()))
+
+    def start(self):
+        """Start sampling (a daemon thread); returns self."""
+        if self._thread is None and not self._stop.is_set():
+            self._thread = threading.Thread(target=self._run, name="event-reporter", daemon=True)
+            self._thread.start()
+        return self
+
+    def _run(self):
+        while not self._stop.wait(self._period):
+            try:
+                self.sample()
+            except Exception:  # a part's bug must not end the page's live view
+                log.exception("sampling the robot for events failed")
+
+    def sample(self):
+        """Read the robot once and publish what changed since the last sample."""
+        status = self._robot.status()
+        with self._lock:
+            self._tell_pose(status.get("pose"))
+            self._tell_status({part: status.get(part) for part in STATUS_PARTS})
+        self._tell_estop(status.get("estop"))
+
+    def _tell_pose(self, pose):
+        now = self._clock()
+        last = self._last["pose"]
+        due = self._pose_told_at is None or now - self._pose_told_at >= POSE_REFRESH
+        if pose_moved(last, pose) or (pose is not None and due):
+            self._last["pose"] = pose
+            self._pose_told_at = now
+            self._events.publish("pose", pose)
+
+    def _tell_status(self, status):
+        key = status_key(status)
+        if key != self._last["status"]:
+            self._last["status"] = key
+            self._events.publish("status", status)
+
+    def _tell_estop(self, estop):
+        with self._lock:
+            if estop == self._last["estop"]:
+                return
+            self._last["estop"] = estop
+        self._events.publish("estop", estop)
+
+    def close(self):
+        """Stop sampling. Idempotent."""
+        self._stop.set()
+        if self._thread is not None and self._thread is not threading.current_thread():
+            self._thread.join(timeout=2)
+
+
+def pose_moved(before, after):
+    """True when ``after`` is news compared with ``before`` (known/unknown, frame, or moved)."""
+    if before is None or after is None:
+        return before is not after
+    if before.get("frame") != after.get("frame"):
+        return True
+    return any(abs(after[k] - before[k]) >= MOVED for k in ("x", "y", "yaw"))
+
+
+def status_key(status):
+    """``status`` without the fields that tick by themselves: equal keys mean nothing happened."""
+    key = {}
+    for part, data in status.items():
+        if isinstance(data, dict):
+            data = {k: v for k, v in data.items() if k not in _TICKING.get(part, ())}
+            if data.get("distance_remaining") is not None:
+                data["distance_remaining"] = round(data["distance_remaining"] / DISTANCE_STEP)
+        key[part] = data
+    return key

@@ -1,0 +1,126 @@
+"""``GET /events``: the robot's state as Server-Sent Events, for the phone page.
+
+Each event is ``event: <kind>`` and ``data: <one JSON object>`` (docs/api.md lists the kinds).
+A new stream first gets the latest state of every kind (so a page draws at once, and a
+reconnecting one catches up: events carry state, never deltas), then each change as the
+event bus tells it. A slow reader never queues: its subscription keeps the newest event of
+each kind only. A comment line every ``heartbeat`` seconds keeps proxies from closing an
+idle stream and makes a write to a vanished peer fail, freeing its thread; where the HTTP
+server can tell (``flask_move_server.peer_gone`` in the WSGI environ, see http_server.py),
+a peer that closed the connection is noticed within ``poll`` seconds.
+
+Each open stream holds a worker thread for as long as it is open, so at most
+``server.max_streams`` are served at a time (one more answers 503 ``too_many_streams``),
+and the HTTP server has that many threads more than ``server.threads``. A stream ends when
+the event bus closes (the server is stopping), so it never delays SIGTERM.
+Authorised like every route: the page reads it with ``fetch()`` and an ``Authorization``
+header (EventSource cannot send one, and a token never goes in a URL).
+"""
+
+import json
+import threading
+import time
+
+from flask import Blueprint, Response, current_app, request
+
+from flask_move_server.errors import TooManyStreams
+
+events_api = Blueprint("events", __name__)
+
+HEARTBEAT = 15.0  # s between comment lines on a quiet stream
+POLL = 1.0  # s: how often a quiet stream looks whether its peer left or the server is stopping
+PEER_GONE = "flask_move_server.peer_gone"  # WSGI environ key: a callable, True once the client left
+RETRY_MS = 2000  # the reconnection delay the stream suggests to SSE clients
+
+
+class StreamGate:
+    """How many streams may be open (``max_streams``), how many are, and their timing."""
+
+    def __init__(self, max_streams, heartbeat=HEARTBEAT, poll=POLL):
+        self.max_streams = max_streams
+        self.heartbeat = heartbeat
+        self.poll = min(poll, heartbeat)
+        self._lock = threading.Lock()
+        self.open = 0
+
+    def enter(self):
+        """Count one more open stream; TooManyStreams when all are taken."""
+        with self._lock:
+            if self.open >= self.max_streams:
+                raise TooManyStreams(
+                    "{} live views are open already, the most this robot serves (server.max_streams). "
+                    "Close a page on another phone or tab, or wait for it to time out, then "
+                    "reload.".format(self.max_streams))
+            self.open += 1
+
+    def leave(self):
+        with self._lock:
+            self.open -= 1
+
+
+@events_api.record_once
+def _set_up(state):
+    shared = state.app.extensions["flask_move_server"]
+    shared.setdefault("streams", StreamGate(shared["config"].server.max_streams))
+
+
+@events_api.route("/events", methods=["GET"])
+def stream():
+    shared = current_app.extensions["flask_move_server"]
+    gate = shared["streams"]
+    gate.enter()
+    body = EventStream(shared["events"].subscribe(), gate, request.environ.get(PEER_GONE))
+    return Response(body, mimetype="text/event-stream",
+                    headers={"Cache-Control": "no-store", "X-Accel-Buffering": "no"})
+
+
+class EventStream:
+    """The response body of one stream: an iterable of SSE chunks, closed once by the server.
+
+    A class rather than a generator because the WSGI server calls ``close()`` even when it never
+    started iterating (the client left at once): the gate's place and the subscription are
+    given back either way.
+    """
+
+    def __init__(self, subscription, gate, peer_gone=None):
+        self._sub = subscription
+        self._gate = gate
+        self._peer_gone = peer_gone or (lambda: False)
+        self._closed = False
+
+    def __iter__(self):
+        # The first chunk is written at once: the HTTP server sends the headers with it.
+        yield ("retry: {}\n\n".format(RETRY_MS) + self._pending()).encode("utf-8")
+        quiet_since = time.monotonic()
+        while not self._closed:
+            item = self._sub.next(self._gate.poll)
+            if item is not None:
+                yield (format_event(*item) + self._pending()).encode("utf-8")
+                quiet_since = time.monotonic()
+            elif self._sub.closed or self._peer_gone():
+                return
+            elif time.monotonic() - quiet_since >= self._gate.heartbeat:
+                yield b": heartbeat\n\n"
+                quiet_since = time.monotonic()
+
+    def _pending(self):
+        """Every event waiting now, formatted: one write for a burst (the priming on connect)."""
+        chunks = []
+        item = self._sub.next(0)
+        while item is not None:
+            chunks.append(format_event(*item))
+            item = self._sub.next(0)
+        return "".join(chunks)
+
+    def close(self):
+        """The server is done with this stream (ended, client gone, or stopping). Idempotent."""
+        if self._closed:
+            return
+        self._closed = True
+        self._sub.close()
+        self._gate.leave()
+
+
+def format_event(kind, data):
+    """One SSE event: ``event: kind`` and ``data: {json}`` (JSON has no newline: one data line)."""
+    return "event: {}\ndata: {}\n\n".format(kind, json.dumps(data, separators=(",", ":")))

@@ -1,0 +1,133 @@
+"""``GET /events`` over the product's HTTP server (http_server.py), real sockets, the fake robot.
+
+What a page reading the stream notices: the latest state at once on connect, each change as it
+comes, heartbeats on a quiet stream, a JSON 503 past ``server.max_streams``, a 401 without the
+token; and what the robot's owner would notice: a reader that stops reading costs a bounded
+amount of memory, and a page that goes away gives its place back.
+"""
+
+import contextlib
+import socket
+import threading
+import time
+
+import pytest
+import requests
+
+from flask_move_server.events import EventBus
+from flask_move_server.http_server import STREAM_BACKLOG, HttpServer
+from flask_move_server.web import create_app
+from flask_move_server.web.events import StreamGate
+from tests.conftest import wait_for
+from tests.fake_robot import FakeRobot
+from tests.sse import EventReader
+
+TOKEN = "stream-test-token"
+
+
+@pytest.fixture
+def bus():
+    bus = EventBus()
+    yield bus
+    bus.close()
+
+
+@contextlib.contextmanager
+def _serve(robot_config, store, bus, token=None, **gate):
+    """The app on the product's server, whose loop sleeps long when nothing wakes it.
+
+    Waitress's loop wakes once a second by itself; here an event only arrives before the
+    reader's 10 s timeout if it is sent when written, not when the loop next wakes.
+    """
+    app = create_app(robot_config, FakeRobot(), store, token=token, events=bus)
+    if gate:
+        app.extensions["flask_move_server"]["streams"] = StreamGate(**gate)
+    server = HttpServer(app, robot_config.server)
+    server.adj.asyncore_loop_timeout = 60
+    thread = threading.Thread(target=server.run, name="test-http-server", daemon=True)
+    thread.start()
+    try:
+        yield server, "http://127.0.0.1:{}".format(server.effective_port)
+    finally:
+        server.stop()
+        thread.join(5)
+        server.close()
+
+
+def test_a_new_stream_gets_the_latest_state_at_once_then_each_change(robot_config, store, bus):
+    bus.publish("estop", {"latched": False, "source": None, "since": None})
+    bus.publish("pose", {"x": 1.0, "y": 2.0, "yaw": 0.0, "frame": "map", "age": 0.0})
+    with _serve(robot_config, store, bus) as (_, url), EventReader(url) as reader:
+        assert reader.status_code == 200
+        assert reader.response.headers["Content-Type"].startswith("text/event-stream")
+        assert reader.response.headers["Cache-Control"] == "no-store"
+        assert reader.next() == ("estop", {"latched": False, "source": None, "since": None})
+        assert reader.next()[1]["x"] == 1.0
+        assert reader.retry == 2000
+        bus.publish("pose", {"x": 1.5, "y": 2.0, "yaw": 0.0, "frame": "map", "age": 0.0})
+        assert reader.next() == ("pose", {"x": 1.5, "y": 2.0, "yaw": 0.0, "frame": "map", "age": 0.0})
+
+
+def test_a_quiet_stream_gets_heartbeats(robot_config, store, bus):
+    bus.publish("mode", {"mode": "idle"})
+    with _serve(robot_config, store, bus, max_streams=2, heartbeat=0.1) as (_, url), EventReader(url) as reader:
+        assert reader.next(comments=True) == ("mode", {"mode": "idle"})
+        assert reader.next(comments=True) == (":", "heartbeat")
+        assert reader.next(comments=True) == (":", "heartbeat")
+
+
+def test_one_stream_more_than_max_streams_is_a_json_503_and_a_closed_one_gives_its_place_back(
+        robot_config, store, bus):
+    robot_config.server.max_streams = 2
+    with _serve(robot_config, store, bus) as (server, url):
+        first, second = EventReader(url), EventReader(url)
+        third = requests.get(url + "/events", timeout=10)
+        assert third.status_code == 503
+        assert third.headers["Content-Type"] == "application/json"
+        assert third.json()["error"] == "too_many_streams"
+        first.close()  # the page went away: noticed without waiting for a heartbeat
+        wait_for(lambda: _opens(url), timeout=10, message="the closed stream's place to be free again")
+        second.close()
+
+
+def _opens(url):
+    with EventReader(url) as reader:
+        return reader.status_code == 200
+
+
+def test_a_token_is_needed_when_the_robot_has_one(robot_config, store, bus):
+    with _serve(robot_config, store, bus, token=TOKEN) as (_, url):
+        refused = requests.get(url + "/events", timeout=10)
+        assert refused.status_code == 401 and refused.json()["error"] == "unauthorized"
+        bus.publish("estop", {"latched": True, "source": "api", "since": None})
+        with EventReader(url, headers={"Authorization": "Bearer " + TOKEN}) as reader:
+            assert reader.next()[0] == "estop"
+
+
+def test_a_reader_that_stops_reading_holds_a_bounded_backlog(robot_config, store, bus):
+    padding = "x" * 20000
+    with _serve(robot_config, store, bus) as (server, url):
+        sock = socket.socket()
+        sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)
+        sock.connect(("127.0.0.1", int(server.effective_port)))
+        sock.sendall(b"GET /events HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n")
+        sock.recv(100)  # the stream began; from now on this reader reads nothing
+        try:
+            for i in range(600):  # 12 MB of events, far more than the socket buffers hold
+                bus.publish("pose", {"x": i, "padding": padding})
+                time.sleep(0.001)
+            unsent = [channel.total_outbufs_len for channel in list(server._map.values())
+                      if hasattr(channel, "total_outbufs_len")]
+            assert max(unsent) <= STREAM_BACKLOG + 2 * len(padding), unsent
+        finally:
+            sock.close()
+
+
+def test_streams_end_when_the_event_bus_closes(robot_config, store, bus):
+    with _serve(robot_config, store, bus) as (_, url), EventReader(url) as reader:
+        bus.publish("mode", {"mode": "idle"})
+        reader.next()
+        bus.close()  # the server is stopping
+        assert reader.next() is None and reader.ended
+        late = EventReader(url)  # one opened meanwhile ends at once too
+        assert late.next() is None and late.ended

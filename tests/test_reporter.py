@@ -1,0 +1,136 @@
+"""The reporter tells the event bus what changed in the robot, and only that; the plan is thinned."""
+
+from flask_move_server.events import EventBus
+from flask_move_server.reporter import POSE_REFRESH, Reporter
+from flask_move_server.ros.plan import MAX_POINTS, plan_event, thin
+from tests.fake_robot import FakeRobot
+
+
+class Clock:
+    def __init__(self):
+        self.now = 100.0
+
+    def __call__(self):
+        return self.now
+
+
+class MovingRobot(FakeRobot):
+    """The fake robot with a pose and motors a test sets."""
+
+    def __init__(self):
+        super().__init__()
+        self.where = {"x": 0.0, "y": 0.0, "yaw": 0.0, "frame": "map", "age": 0.01, "source": "tf"}
+        self.left = 0.0
+        self.remaining = None
+
+    def status(self):
+        status = super().status()
+        status["pose"] = dict(self.where) if self.where else None
+        status["motors"] = dict(status["motors"], left=self.left, command_age=self.remaining)
+        status["teleop"] = dict(status["teleop"], remaining=self.remaining)
+        return status
+
+
+def _reporter(robot):
+    bus, clock = EventBus(), Clock()
+    sub = bus.subscribe()
+    return Reporter(robot, bus, clock=clock), sub, clock
+
+
+def _kinds(sub):
+    kinds = []
+    event = sub.next(0)
+    while event is not None:
+        kinds.append(event[0])
+        event = sub.next(0)
+    return kinds
+
+
+def test_the_first_sample_tells_pose_status_and_estop():
+    reporter, sub, _ = _reporter(MovingRobot())
+    reporter.sample()
+    assert sorted(_kinds(sub)) == ["estop", "pose", "status"]
+
+
+def test_nothing_is_told_again_while_nothing_changes_but_the_ticking_fields():
+    robot = MovingRobot()
+    reporter, sub, clock = _reporter(robot)
+    reporter.sample()
+    _kinds(sub)
+    for tick in range(5):
+        robot.where["age"] += 0.1  # ages, teleop remaining and command ages tick by themselves
+        robot.remaining = 0.5 - tick * 0.1
+        clock.now += 0.1
+        reporter.sample()
+    assert _kinds(sub) == []
+
+
+def test_a_move_is_told_as_a_pose_and_a_motor_change_as_a_status():
+    robot = MovingRobot()
+    reporter, sub, clock = _reporter(robot)
+    reporter.sample()
+    _kinds(sub)
+    robot.where["x"] = 0.05
+    robot.left = 0.4
+    clock.now += 0.1
+    reporter.sample()
+    assert sorted(_kinds(sub)) == ["pose", "status"]
+    assert reporter._events.latest("pose")["x"] == 0.05
+    assert reporter._events.latest("status")["motors"]["left"] == 0.4
+
+
+def test_a_pose_at_rest_is_told_again_once_a_second_with_its_age():
+    robot = MovingRobot()
+    reporter, sub, clock = _reporter(robot)
+    reporter.sample()
+    _kinds(sub)
+    clock.now += POSE_REFRESH
+    robot.where["age"] = 1.2
+    reporter.sample()
+    assert sub.next(0) == ("pose", robot.where)
+
+
+def test_a_pose_becoming_unknown_is_told():
+    robot = MovingRobot()
+    reporter, sub, clock = _reporter(robot)
+    reporter.sample()
+    _kinds(sub)
+    robot.where = None
+    clock.now += 0.1
+    reporter.sample()
+    assert sub.next(0) == ("pose", None)
+
+
+def test_an_estop_engage_is_told_at_once_without_waiting_for_a_sample():
+    robot = MovingRobot()
+    reporter, sub, _ = _reporter(robot)
+    reporter.sample()
+    _kinds(sub)
+    robot.engage_estop("api")
+    kind, data = sub.next(0)
+    assert kind == "estop" and data["latched"] is True and data["source"] == "api"
+    reporter.sample()  # the next sample finds nothing new
+    assert _kinds(sub) == []
+    robot.release_estop()
+    reporter.sample()
+    assert sub.next(0) == ("estop", {"latched": False, "source": None, "since": None})
+
+
+def test_the_thread_samples_and_closes():
+    robot = MovingRobot()
+    bus = EventBus()
+    sub = bus.subscribe()
+    reporter = Reporter(robot, bus).start()
+    try:
+        assert sub.next(5) is not None
+    finally:
+        reporter.close()
+        reporter.close()
+
+
+def test_a_long_plan_is_thinned_to_the_limit_keeping_both_ends():
+    points = [(i * 0.01, 0.5) for i in range(4001)]
+    kept = thin(points, MAX_POINTS)
+    assert len(kept) <= MAX_POINTS and kept[0] == points[0] and kept[-1] == points[-1]
+    event = plan_event("map", [(1.23456, 2.0)])
+    assert event == {"frame": "map", "poses": [[1.235, 2.0]]}
