@@ -102,6 +102,8 @@ class Server:
         self.http = None
         self.robot = None
         self.events = None
+        self.modes = None
+        self._simulation = None
         self._stack = contextlib.ExitStack()
 
     def start(self):
@@ -115,10 +117,11 @@ class Server:
         self.events = EventBus()
         stack.callback(self.events.close)  # closed last of all: streams end after the robot stopped
         robot = self._build_robot(stack)
+        self.modes = self._build_modes(stack)
         maps = self._build_maps(stack, store)
         self._report(stack, robot)
         app = create_app(self.config, robot, store, token=self.config.resolved_token(), events=self.events,
-                         maps=maps)
+                         maps=maps, modes=self.modes)
         self.http = HttpServer(app, self.config.server)
         stack.callback(self.http.close)
         stack.callback(robot.stop)
@@ -127,6 +130,7 @@ class Server:
                  self.config.server.host, self.port, store.path, len(store.all()))
         self._advertise(stack)
         self._node.start()
+        self.modes.restore()  # in the background: the remembered mode's stack starts once ROS answers
         return self
 
     def _build_maps(self, stack, store):
@@ -184,13 +188,43 @@ class Server:
         if cfg.sim.enabled:
             from flask_move_server.sim.runner import Simulation
 
-            stack.callback(Simulation(cfg, node, drive).close)
+            self._simulation = Simulation(cfg, node, drive)
+            stack.callback(self._simulation.close)
         robot = build_robot(cfg, node, drive, estop)
         stack.callback(robot.close)
         self._watch_estop_button(stack, estop)
         self._node = node
         self.robot = robot
         return robot
+
+    def _build_modes(self, stack):
+        """The mode manager over the backend ``modes.stack`` names; closed (its stack stopped) before the robot."""
+        from flask_move_server.modes.manager import ModeManager
+        from flask_move_server.ros.initial_pose import InitialPose
+
+        cfg = self.config
+        initial_pose = InitialPose(cfg.modes.initial_pose_topic, cfg.ros.frames.map, self._node)
+        stack.callback(initial_pose.close)
+        backend = self._stack_backend()
+        if backend is None:
+            log.info("modes: the navigation stack is started outside this server (modes.stack: %s)", cfg.modes.stack)
+        modes = ModeManager(cfg, backend, self.events, relocalize=initial_pose.publish)
+        stack.callback(modes.close)
+        return modes
+
+    def _stack_backend(self):
+        """Who runs the modes' stacks: the simulation's (``sim``), roslaunch children (``roslaunch``), or None."""
+        kind = self.config.stack_kind()
+        if kind == "sim":
+            return getattr(self._simulation, "stacks", None)  # modes/simulated.py, built by the Simulation
+        if kind == "roslaunch":
+            try:
+                from flask_move_server.modes.launched import LaunchedStack
+            except ImportError:  # a build without the roslaunch backend: behave as modes.stack: none
+                log.warning("modes.stack roslaunch: this build has no roslaunch backend")
+                return None
+            return LaunchedStack(self.config)
+        return None
 
     def _watch_estop_button(self, stack, estop):
         """``drive.estop_pin``: a press of the physical e-stop button latches ``estop``."""

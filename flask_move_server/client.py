@@ -13,7 +13,7 @@ import sys
 import time
 import traceback
 
-from flask_move_server import __version__, client_maps
+from flask_move_server import __version__, client_maps, client_modes
 from flask_move_server.api_client import DEFAULT_TIMEOUT, DEFAULT_URL, ExitStatus, RobotClient, dumps, waypoint_path
 from flask_move_server.client_text import LiveLine, describe_status, progress, waypoint_table, xy_yaw
 from flask_move_server.errors import ClientError
@@ -225,6 +225,7 @@ def build_parser():
     p = sub.add_parser("discover", help="find robots on this network (mDNS)")
     p.add_argument("--wait", type=_positive, default=3.0, metavar="S", help="listen S seconds (default 3)")
     p.set_defaults(run=cmd_discover)
+    client_modes.add_parsers(sub, _positive)
     return parser
 
 

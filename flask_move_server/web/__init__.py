@@ -7,10 +7,12 @@ module global, so several apps (tests) can live in one process.
 from flask import Blueprint, Flask, Response, send_from_directory
 
 from flask_move_server.events import EventBus
+from flask_move_server.modes.manager import ModeManager
 from flask_move_server.web import auth, error_handlers, guard
 from flask_move_server.web.estop import estop
 from flask_move_server.web.events import events_api
 from flask_move_server.web.maps import maps_api
+from flask_move_server.web.modes import modes as modes_routes
 from flask_move_server.web.openapi import description
 from flask_move_server.web.routes import WaypointNameConverter, api
 
@@ -25,11 +27,12 @@ class UntypedResponse(Response):
     default_mimetype = None
 
 
-def create_app(config, robot, store, token=None, events=None, maps=None):
+def create_app(config, robot, store, token=None, events=None, maps=None, modes=None):
     """Build the WSGI app serving ``robot`` and the waypoints in ``store``; ``events``: the server's bus.
 
     ``maps``: the :class:`~flask_move_server.maps.service.MapService` behind ``/map`` and ``/maps``
     (default: the configured maps folder, no live map, no mode manager).
+    ``modes``: the server's ModeManager (None: modes are off, the stack runs outside this server).
     """
     events = events if events is not None else EventBus()
     maps = maps if maps is not None else _folder_only_maps(config, store, events)
@@ -41,6 +44,7 @@ def create_app(config, robot, store, token=None, events=None, maps=None):
     app.json.sort_keys = False
     app.extensions["flask_move_server"] = {
         "config": config, "robot": robot, "store": store, "events": events, "maps": maps}
+    app.extensions["flask_move_server"]["modes"] = modes if modes is not None else ModeManager(config, None)
     error_handlers.init_app(app)
     guard.init_app(app, config)  # before auth: it protects robots without a token too
     auth.init_app(app, token)
@@ -49,6 +53,7 @@ def create_app(config, robot, store, token=None, events=None, maps=None):
     app.register_blueprint(maps_api)
     app.register_blueprint(events_api)
     app.register_blueprint(description)
+    app.register_blueprint(modes_routes)
     if config.server.static:
         _add_page(app)
     return app

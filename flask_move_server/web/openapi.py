@@ -26,7 +26,7 @@ ERROR_CODES = {
          "wrong_mode, map_exists, map_in_use, mode_switching, modes_off",
     413: "body_too_large: the body is over server.max_body_bytes",
     503: "ros_unavailable, move_base_unavailable, drive_error, shutting_down, waypoints_locked, map_file, "
-         "no_map_received, too_many_streams",
+         "no_map_received, too_many_streams, stack_failed",
 }
 
 
@@ -58,6 +58,7 @@ def build(config):
     }
     paths.update(_maps())
     paths.update(_static_files())
+    paths.update(_mode_paths(config))
     if config.server.static:
         paths.update(_page())
     return {
@@ -173,6 +174,37 @@ def _events():
                              "': heartbeat' comments. docs/api.md lists each kind's fields.",
               "content": {"text/event-stream": {"schema": {"type": "string"}}}}
     return _operation("The robot's state as it changes (Server-Sent Events)", None, {200: stream}, errors=(503,))
+
+
+def _mode_paths(config):
+    """``/mode`` (read, switch) and ``/pose`` (set the robot's pose): docs/api.md "Maps and modes"."""
+    mode = _object({"mode": {"enum": ["idle", "mapping", "navigation"]}, "map": {"type": "string", "nullable": True},
+                    "state": {"enum": ["starting", "running", "stopping", "failed"]},
+                    "since": {"type": "string", "format": "date-time"}, "message": {"type": "string"}},
+                   ["mode", "map", "state", "since", "message"])
+    pose = _object({"x": _coordinate(POSITION_LIMIT), "y": _coordinate(POSITION_LIMIT),
+                    "yaw": _coordinate(YAW_LIMIT)}, ["x", "y"])
+    by_name = _object({"name": _name("a waypoint's name")}, ["name"])
+    wait = {"type": "number", "minimum": 0, "maximum": config.modes.stop_timeout + config.modes.start_timeout,
+            "description": "seconds to wait for the mode to run before answering"}
+    switch = _object({"mode": {"enum": ["idle", "mapping", "navigation"]},
+                      "map": _name("navigation: a saved map's name (none: the stack's own map)"),
+                      "pose": {"oneOf": [pose, by_name], "description": "navigation: where the robot is"},
+                      "wait": wait}, ["mode"])
+    switched = _json(dict(mode, properties=dict(mode["properties"], status={"enum": ["ok"]})))
+    return {
+        "/mode": {
+            "get": _operation("The mode (idle, mapping, navigation), its map and its state", None,
+                              {200: _json(mode)}),
+            "post": _operation("Switch the mode: stop the running stack, start the mode's", switch,
+                               {200: dict(switched, description="running (with wait)"),
+                                202: dict(switched, description="switching")}, errors=(404, 409, 503)),
+        },
+        "/pose": {"post": _operation("Set the robot's pose for localization (RViz's 2D Pose Estimate)",
+                                     {"oneOf": [pose, by_name]},
+                                     {200: _ok({"pose": _ref("Pose"), "name": {"type": "string"}})},
+                                     errors=(404, 409, 503))},
+    }
 
 
 def _page():

@@ -119,6 +119,7 @@ class WaypointNameConverter(PathConverter):
 def status():
     body = _robot().status()
     body["waypoints"] = {"file": _store().path, "problem": _store().problem}
+    body["mode"] = current_app.extensions["flask_move_server"]["modes"].status()
     return jsonify(body)
 
 

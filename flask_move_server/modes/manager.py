@@ -1,0 +1,323 @@
+"""The mode manager: which navigation stack runs (idle, mapping, navigation on a map), one switch at a time.
+
+A switch is checked at once (unknown map → UnknownMap before anything is stopped), then runs
+in a background thread: the running stack is stopped (state ``stopping``), the new one
+started (``starting``), and the mode is ``running`` or ``failed`` with the backend's message.
+Every state change is published as a ``mode`` event carrying the ``GET /mode`` body, and a
+mode that reached ``running`` is remembered in ``Config.mode_state_file()`` for the next start.
+
+A stack that dies by itself (the backend calls ``on_exit``) is restarted up to
+``modes.restarts`` times, after 1, 2 then 4 s, and is ``failed`` after that; a run of
+:attr:`ModeManager.STABLE_RUN` seconds forgives the earlier crashes.
+
+The backend (``modes/launched.py`` on the robot, ``modes/simulated.py`` with ``--sim``) does
+the work: ``start(mode, map_yaml_or_None, on_exit)`` blocks until the stack is ready or raises
+StackFailed; ``stop()`` is idempotent. ``relocalize(pose)`` publishes the robot's pose estimate
+(``ros/initial_pose.py``). Pure: no rospy, no Flask.
+"""
+
+import datetime
+import functools
+import logging
+import os
+import threading
+import time
+
+from flask_move_server.errors import BadMapName, BadRequest, ModesOff, ModeSwitching, StackFailed, UnknownMap, WrongMode
+from flask_move_server.maps.catalogue import MapCatalogue
+from flask_move_server.modes import relocalizing, state_file
+from flask_move_server.modes.targets import IDLE, OUTSIDE, Target, default_target, unusable_map_target
+
+log = logging.getLogger(__name__)
+
+MODES = state_file.MODES
+
+
+def _now_iso():
+    return datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")
+
+
+class ModeManager:
+    """The mode in force and the one switch allowed at a time; ``backend`` None: modes are off."""
+
+    BACKOFF = (1.0, 2.0, 4.0)  # seconds before the 1st, 2nd, 3rd (and later) restart
+    STABLE_RUN = 60.0  # seconds of running after which earlier crashes are forgiven
+
+    def __init__(self, config, backend, events=None, relocalize=None, clock=time.monotonic):
+        self._config = config
+        self._backend = backend
+        self._events = events
+        self._relocalize = relocalize
+        self._clock = clock
+        self._catalogue = MapCatalogue(config.maps_folder())
+        self._changed = threading.Condition()
+        self._busy = False
+        self._gen = 0
+        self._thread = None
+        self._closing = threading.Event()
+        self._closed = False
+        self._up = False  # the backend may have a stack running (stop it before the next start)
+        self._restarts = 0
+        self._running_since = None
+        # Until restore(): idle with nothing started; without a backend, the outside stack's navigation.
+        self._target = Target("idle") if backend else Target("navigation")
+        self._status = self._body(self._target, "running", IDLE if backend else OUTSIDE)
+
+    # reading ---------------------------------------------------------------
+
+    def status(self):
+        """The ``GET /mode`` body: mode, map, state, since, message."""
+        with self._changed:
+            return dict(self._status)
+
+    @property
+    def active_map(self):
+        """The named map of the navigation mode in force (or being started); None otherwise."""
+        with self._changed:
+            return self._target.map if self._target.mode == "navigation" else None
+
+    def wait(self, timeout):
+        """Wait up to ``timeout`` s for the switch: True once running, False if still under way; StackFailed."""
+        deadline = time.monotonic() + timeout
+        with self._changed:
+            while self._busy or self._status["state"] not in ("running", "failed"):
+                left = deadline - time.monotonic()
+                if left <= 0 or self._closed:
+                    return False
+                self._changed.wait(left)
+            if self._status["state"] == "failed":
+                raise StackFailed(self._status["message"])
+            return True
+
+    # switching -------------------------------------------------------------
+
+    def switch(self, mode, map_name=None, pose=None):
+        """Start switching to ``mode`` (navigation: on ``map_name``; None: the stack's own map).
+
+        ``pose``: a Pose2D or a waypoint name on that map, set once navigation runs. Returns the
+        ``starting`` status at once; ModesOff, ModeSwitching, UnknownMap, BadRequest refuse.
+        """
+        if self._backend is None:
+            raise ModesOff("This server does not run the navigation stack (modes.stack: none): "
+                           "start mapping or navigation with your own launch files.")
+        target = self._target_of(mode, map_name, pose)
+        with self._changed:
+            if self._busy:
+                raise ModeSwitching("A switch to {} is under way; wait for it (GET /mode) and try again."
+                                    .format(self._target.describe()))
+            self._begin(target, "starting", "starting " + target.describe())
+            gen, starting = self._gen, dict(self._status)
+        self._spawn(self._switch, gen, target)
+        return starting
+
+    def _target_of(self, mode, map_name, pose):
+        if mode not in MODES:
+            raise BadRequest("Unknown mode {!r}: use one of {}.".format(mode, ", ".join(MODES)))
+        if mode != "navigation" and (map_name is not None or pose is not None):
+            raise BadRequest("Only the navigation mode takes a 'map' and a 'pose'.")
+        yaml_path = None
+        if map_name is not None:
+            yaml_path = self._catalogue.yaml_path(map_name)  # BadMapName for a name no map can have
+            if not os.path.isfile(yaml_path):
+                raise self._catalogue_unknown(map_name)
+        if isinstance(pose, str):
+            pose = relocalizing.waypoint_pose(self._waypoints_path(map_name), pose)
+        return Target(mode, map_name, yaml_path, pose)
+
+    def _catalogue_unknown(self, name):
+        try:
+            self._catalogue.describe(name)
+        except UnknownMap as exc:
+            return exc
+        return UnknownMap("No map named {!r}.".format(name))
+
+    def _waypoints_path(self, map_name):
+        """The waypoints file that goes with ``map_name`` (None: the single waypoints file)."""
+        return self._catalogue.waypoints_path(map_name) if map_name else self._config.waypoints.file
+
+    def _begin(self, target, state, message):
+        """Under the lock: a new switch owns the manager (the old stack's exits are ignored from now on)."""
+        self._busy = True
+        self._gen += 1
+        self._target = target
+        self._set(target, state, message)
+
+    def _spawn(self, work, *args):
+        self._thread = threading.Thread(target=work, args=args, name="mode-switch", daemon=True)
+        self._thread.start()
+
+    def _switch(self, gen, target):
+        try:
+            if self._up:
+                with self._changed:
+                    self._set(target, "stopping", "stopping before " + target.describe())
+            self._stop_stack()  # idempotent: also whatever a backend runs before the first switch
+            self._restarts = 0
+            failure = self._start(gen, target, "starting " + target.describe(), relocalize=True)
+            if failure is not None:
+                with self._changed:
+                    self._set(target, "failed", failure)
+                    self._release(gen)
+        finally:
+            self._done(gen)
+
+    def _start(self, gen, target, message, relocalize):
+        """Bring ``target`` up; None when running, else the failure's message (the caller says failed)."""
+        with self._changed:
+            self._set(target, "starting", message)
+        if target.mode == "idle":
+            self._running(gen, target, target.note or IDLE)
+            return None
+        self._up = True
+        try:
+            self._backend.start(target.mode, target.yaml, functools.partial(self._on_exit, gen))
+        except Exception as exc:  # StackFailed says what to fix; anything else is a backend bug, logged
+            if not isinstance(exc, StackFailed):
+                log.exception("the %s stack could not start", target.mode)
+            return str(exc) or type(exc).__name__
+        if relocalize:
+            note = relocalizing.after_start(target, self._waypoints_path, self._publish_pose)
+        else:
+            note = relocalizing.restarted_note(target, self._restarts)
+        self._running(gen, target, note)
+        return None
+
+    def _running(self, gen, target, message):
+        """Remember ``target`` for the next start, then say it runs (a waiter finds it remembered)."""
+        try:
+            state_file.save(self._config.mode_state_file(), target.mode, target.map)
+        except OSError as exc:
+            log.warning("cannot remember the mode in %s: %s", self._config.mode_state_file(), exc)
+        with self._changed:
+            self._running_since = self._clock()
+            self._set(target, "running", message)
+            self._release(gen)  # in the same breath: a crash from now on is this run's
+
+    def _release(self, gen):
+        """Under the lock: switch ``gen`` is over (unless a newer one owns the manager already)."""
+        if gen == self._gen:
+            self._busy = False
+            self._changed.notify_all()
+
+    def _done(self, gen):
+        with self._changed:
+            self._release(gen)
+
+    def _stop_stack(self):
+        try:
+            self._backend.stop()
+        except Exception:  # stop is best effort; the next start says if something is left
+            log.exception("stopping the navigation stack failed")
+        self._up = False
+
+    def _set(self, target, state, message):
+        """Under the lock: the new status, published as a ``mode`` event."""
+        self._status = self._body(target, state, message)
+        self._changed.notify_all()
+        if self._events is not None:
+            self._events.publish("mode", dict(self._status))
+
+    @staticmethod
+    def _body(target, state, message):
+        return {"mode": target.mode, "map": target.map, "state": state, "since": _now_iso(), "message": message}
+
+    # crashes ---------------------------------------------------------------
+
+    def _on_exit(self, gen, message):
+        """The backend's stack of switch ``gen`` died by itself: restart it, or give up."""
+        with self._changed:
+            if gen != self._gen or self._busy or self._closed or self._status["state"] != "running":
+                return  # a stack we are stopping, or an old one
+            log.warning("the %s stack stopped by itself: %s", self._target.mode, message)
+            if self._running_since is not None and self._clock() - self._running_since >= self.STABLE_RUN:
+                self._restarts = 0
+            if not self._count_restart(message):
+                return
+            self._busy = True
+            self._gen += 1  # the restarted stack's exits carry the new number; the dead one's are ignored
+            gen, target = self._gen, self._target
+        self._spawn(self._restart, gen, target, message)
+
+    def _count_restart(self, message):
+        """Under the lock: one more restart, or False after ``modes.restarts`` (the mode is then failed)."""
+        self._restarts += 1
+        if self._restarts > self._config.modes.restarts:
+            limit = self._config.modes.restarts
+            self._set(self._target, "failed", "failed after {} restart{}: {}".format(
+                limit, "" if limit == 1 else "s", message) if limit else message)
+            return False
+        return True
+
+    def _restart(self, gen, target, message):
+        try:
+            while True:
+                note = "restarting ({} of {}) after: {}".format(self._restarts, self._config.modes.restarts, message)
+                with self._changed:
+                    self._set(target, "starting", note)
+                if self._closing.wait(self.BACKOFF[min(self._restarts, len(self.BACKOFF)) - 1]):
+                    return
+                self._stop_stack()
+                message = self._start(gen, target, note, relocalize=False)
+                with self._changed:
+                    if message is None or not self._count_restart(message):
+                        self._release(gen)
+                        return
+        finally:
+            self._done(gen)
+
+    # start-up, pose, close -------------------------------------------------
+
+    def restore(self):
+        """At start-up: come back to the remembered mode (else the default); never raises."""
+        if self._backend is None:
+            return
+        target = self._remembered()
+        try:
+            with self._changed:
+                self._begin(target, "starting", "starting " + target.describe())
+                gen = self._gen
+            self._spawn(self._switch, gen, target)
+        except Exception:
+            log.exception("cannot restore the mode %s", target.describe())
+
+    def _remembered(self):
+        remembered, reason = state_file.load(self._config.mode_state_file())
+        if remembered is None:
+            log.info("no mode to come back to (%s): starting the default", reason)
+            return default_target(self._config.stack_kind())
+        mode, map_name = remembered
+        try:
+            return self._target_of(mode, map_name, None)
+        except (UnknownMap, BadMapName) as exc:
+            log.warning("cannot come back to the map %r: %s", map_name, exc)
+            return unusable_map_target(map_name, "is gone" if isinstance(exc, UnknownMap) else "has a bad name")
+
+    def set_pose(self, pose):
+        """Tell localization the robot is at ``pose`` (in the map frame); WrongMode when no map is in use."""
+        if self.status()["mode"] == "idle":
+            raise WrongMode("No map is in use (the mode is idle): start navigation on a map first "
+                            "(POST /mode {\"mode\": \"navigation\", \"map\": NAME}).")
+        self._publish_pose(pose)
+
+    def _publish_pose(self, pose):
+        if self._relocalize is None:
+            raise ModesOff("This server cannot publish the robot's pose (no ROS publisher).")
+        self._relocalize(pose)
+
+    def close(self):
+        """Stop switching, stop the stack, release the backend. Idempotent."""
+        with self._changed:
+            if self._closed:
+                return
+            self._closed = True
+            self._gen += 1
+            self._changed.notify_all()
+        self._closing.set()
+        thread = self._thread
+        if thread is not None:
+            thread.join(self._config.modes.stop_timeout)
+        if self._backend is not None:
+            self._stop_stack()
+            close = getattr(self._backend, "close", None)
+            if close is not None:
+                close()

@@ -1,0 +1,77 @@
+"""Where to tell localization the robot is after a switch: a waypoint of the map, or its dock.
+
+After a switch to navigation on a named map the robot's pose is set for it (RViz's
+"2D Pose Estimate"): the pose given with the switch, else the map's ``dock`` waypoint when it
+has one, else the running message asks for ``POST /pose``. Navigation on the stack's own map
+(map null) is left as the stack sets it, as before modes existed. After a restart of a crashed
+stack the robot has moved since, so nothing is set and the message says to check. Waypoints are
+read with the waypoints file's own loader. Pure: no rospy, no Flask.
+"""
+
+from flask_move_server import waypoints_file, waypoints_format
+from flask_move_server.errors import UnknownWaypoint, WaypointFileError
+from flask_move_server.geometry import Pose2D
+from flask_move_server.waypoints import check_name, suggest
+
+DOCK = "dock"
+
+
+def _waypoints(path):
+    text = waypoints_file.read(path)
+    return waypoints_format.parse(text or "", source=path)
+
+
+def waypoint_pose(path, name):
+    """The Pose2D of waypoint ``name`` in the waypoints file ``path``; UnknownWaypoint if it has none."""
+    check_name(name)
+    waypoints = _waypoints(path)
+    if name not in waypoints:
+        raise UnknownWaypoint(name, suggest(name, waypoints))
+    wp = waypoints[name]
+    return Pose2D(wp.x, wp.y, wp.yaw)
+
+
+def dock_pose(path):
+    """The ``dock`` waypoint's Pose2D in ``path``, or None (no file, no dock, or a broken file)."""
+    try:
+        return waypoint_pose(path, DOCK)
+    except (UnknownWaypoint, WaypointFileError):
+        return None
+
+
+MAPPING = "running; drive the robot around the place, then save the map (POST /maps, robotctl map save NAME)"
+OWN_MAP = "running on the map the navigation stack was configured with"
+NO_DOCK = "running; set the robot's pose (POST /pose) \u2013 the map has no dock waypoint"
+
+
+def after_start(target, waypoints_path, publish):
+    """Set the robot's pose for a switch to ``target`` that now runs; the running message.
+
+    ``waypoints_path(map_name)``: that map's waypoints file; ``publish(pose)``: the estimate out.
+    """
+    if target.mode != "navigation":
+        return target.note or MAPPING
+    if target.pose is not None:
+        return _publish_note(publish, target.pose, "the given pose")
+    if target.map is None:
+        return OWN_MAP
+    found = dock_pose(waypoints_path(target.map))
+    if found is None:
+        return NO_DOCK
+    return _publish_note(publish, found, "the dock waypoint")
+
+
+def _publish_note(publish, pose, what):
+    try:
+        publish(pose)
+    except Exception as exc:  # ROS down, no publisher: the stack runs, say the pose is not set
+        return "running; the robot's pose could not be set ({}): POST /pose".format(exc)
+    return "running; the robot's pose was set to {} ({:.2f}, {:.2f}, {:.2f})".format(what, pose.x, pose.y, pose.yaw)
+
+
+def restarted_note(target, restarts):
+    """The running message after ``restarts`` restarts of a crashed stack."""
+    note = "running again after {} restart{}".format(restarts, "" if restarts == 1 else "s")
+    if target.mode == "navigation":
+        note += "; check the robot's pose (POST /pose sets it)"
+    return note

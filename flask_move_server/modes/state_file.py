@@ -1,0 +1,43 @@
+"""The mode to come back to after a restart: ``{"mode", "map"}`` in a small JSON file.
+
+Written atomically (temporary file, fsync, rename, fsync of the folder: the waypoints
+file's plumbing), so a power cut leaves the old or the new choice, never half of one.
+Reading never raises: a missing or broken file means "no choice remembered", and the
+reason is returned for the log. Pure: no rospy, no Flask.
+"""
+
+import json
+import os
+
+from flask_move_server import waypoints_file
+from flask_move_server.errors import WaypointFileError
+
+MODES = ("idle", "mapping", "navigation")
+
+
+def save(path, mode, map_name):
+    """Remember ``mode`` (and ``map_name`` for navigation) in ``path``."""
+    folder = os.path.dirname(os.path.abspath(path))
+    os.makedirs(folder, exist_ok=True)
+    text = json.dumps({"mode": mode, "map": map_name}) + "\n"
+    waypoints_file.atomic_write(os.path.abspath(path), text)
+
+
+def load(path):
+    """``((mode, map), None)`` as remembered, or ``(None, reason)`` when there is nothing usable."""
+    try:
+        text = waypoints_file.read(path)
+    except WaypointFileError as exc:
+        return None, str(exc)
+    if text is None:
+        return None, "no {} yet".format(path)
+    try:
+        data = json.loads(text)
+    except ValueError as exc:
+        return None, "{} is not valid JSON: {}".format(path, exc)
+    if not isinstance(data, dict) or data.get("mode") not in MODES:
+        return None, "{} does not name a mode ({})".format(path, ", ".join(MODES))
+    map_name = data.get("map")
+    if map_name is not None and (data["mode"] != "navigation" or not isinstance(map_name, str)):
+        return None, "{}: only navigation takes a map, given as text".format(path)
+    return (data["mode"], map_name), None

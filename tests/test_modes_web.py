@@ -1,0 +1,145 @@
+"""``GET/POST /mode`` and ``POST /pose`` over HTTP: the mode manager behind the routes, a stand-in stack.
+
+The routes only validate and call the manager (modes/manager.py), so the stack under it is the
+stand-in of tests/modes_standin.py and the robot the fake one; what the real stacks do is the
+backends' tests'.
+"""
+
+import pytest
+
+from flask_move_server.events import EventBus
+from flask_move_server.modes.manager import ModeManager
+from flask_move_server.web import create_app
+from tests.fake_robot import FakeRobot
+from tests.modes_standin import StandInStack, save_map
+
+
+@pytest.fixture
+def stack():
+    return StandInStack()
+
+
+@pytest.fixture
+def poses():
+    return []
+
+
+@pytest.fixture
+def modes(robot_config, stack, poses):
+    manager = ModeManager(robot_config, stack, EventBus(), relocalize=poses.append)
+    yield manager
+    manager.close()
+
+
+@pytest.fixture
+def client(robot_config, store, modes):
+    return create_app(robot_config, FakeRobot(), store, modes=modes).test_client()
+
+
+def test_get_mode_is_the_managers_status(client, modes):
+    r = client.get("/mode")
+    assert r.status_code == 200 and r.get_json() == modes.status()
+    assert set(r.get_json()) == {"mode", "map", "state", "since", "message"}
+
+
+def test_post_mode_answers_202_switching_then_runs(client, modes, stack):
+    r = client.post("/mode", json={"mode": "mapping"})
+    assert r.status_code == 202
+    assert r.get_json()["status"] == "ok" and r.get_json()["mode"] == "mapping"
+    assert r.get_json()["state"] == "starting"
+    assert modes.wait(5)
+    assert client.get("/mode").get_json()["state"] == "running"
+    assert stack.starts() == [("mapping", None)]
+
+
+def test_post_mode_with_wait_answers_200_once_running(client, robot_config, stack):
+    yaml_path = save_map(robot_config, "flat")
+    r = client.post("/mode", json={"mode": "navigation", "map": "flat", "wait": 5})
+    assert r.status_code == 200
+    body = r.get_json()
+    assert (body["mode"], body["map"], body["state"]) == ("navigation", "flat", "running")
+    assert stack.starts() == [("navigation", yaml_path)]
+
+
+def test_post_mode_with_wait_answers_202_while_still_starting(client, modes, stack):
+    stack.gate.clear()
+    r = client.post("/mode", json={"mode": "mapping", "wait": 0.05})
+    assert r.status_code == 202 and r.get_json()["state"] == "starting"
+    r = client.post("/mode", json={"mode": "idle"})
+    assert r.status_code == 409 and r.get_json()["error"] == "mode_switching"
+    stack.gate.set()
+    assert modes.wait(5)
+
+
+def test_a_failed_start_with_wait_is_503_with_the_stacks_message(client, stack):
+    stack.failures.append("move_base did not come up within 60 s: see ~/.ros/log/latest")
+    r = client.post("/mode", json={"mode": "mapping", "wait": 5})
+    assert r.status_code == 503
+    assert r.get_json()["error"] == "stack_failed" and "move_base did not come up" in r.get_json()["message"]
+    assert client.get("/mode").get_json()["state"] == "failed"
+
+
+@pytest.mark.parametrize("body, status, code", [
+    ({"mode": "navigation", "map": "nowhere"}, 404, "unknown_map"),
+    ({"mode": "navigation", "map": "../x"}, 400, "bad_map_name"),
+    ({"mode": "flying"}, 400, "bad_request"),
+    ({"mode": "mapping", "map": "flat"}, 400, "bad_request"),
+    ({"map": "flat"}, 400, "bad_request"),
+    ({"mode": "navigation", "wait": -1}, 400, "bad_request"),
+    ({"mode": "navigation", "wait": 1e9}, 400, "bad_request"),
+    ({"mode": "navigation", "pose": [1, 2]}, 400, "bad_request"),
+    ({"mode": "navigation", "pose": {"x": 1}}, 400, "bad_request"),
+    ({"mode": "navigation", "pose": {"name": "dock", "x": 1}}, 400, "bad_request"),
+    ({"mode": "navigation", "pose": {"z": 1}}, 400, "bad_request"),
+    ({"mode": "navigation", "pose": {"name": "nowhere"}}, 404, "unknown_waypoint"),
+    ({"mode": "navigation", "speed": 1}, 400, "bad_request"),
+])
+def test_bad_switches_are_refused_and_nothing_stops(client, stack, body, status, code):
+    r = client.post("/mode", json=body)
+    assert (r.status_code, r.get_json()["error"]) == (status, code), r.get_json()
+    assert stack.calls == []
+
+
+def test_a_switch_with_a_pose_sets_it_once_running(client, poses):
+    r = client.post("/mode", json={"mode": "navigation", "pose": {"x": 1.5, "y": -2.0, "yaw": 0.3}, "wait": 5})
+    assert r.status_code == 200 and "given pose" in r.get_json()["message"]
+    assert [p.as_dict() for p in poses] == [{"x": 1.5, "y": -2.0, "yaw": 0.3}]
+
+
+def test_post_pose_publishes_the_estimate(client, modes, poses):
+    client.post("/mode", json={"mode": "navigation", "wait": 5})
+    r = client.post("/pose", json={"x": 1.0, "y": 2.0, "yaw": -0.5})
+    assert r.status_code == 200 and r.get_json()["pose"] == {"x": 1.0, "y": 2.0, "yaw": -0.5}
+    r = client.post("/pose", json={"name": "kitchen"})  # from the waypoints /waypoints serves
+    assert r.status_code == 200 and r.get_json()["name"] == "kitchen"
+    assert [p.as_dict() for p in poses] == [{"x": 1.0, "y": 2.0, "yaw": -0.5}, {"x": 1.23, "y": 4.56, "yaw": 0.79}]
+
+
+def test_post_pose_needs_a_map_in_use(client, poses):
+    r = client.post("/pose", json={"x": 1.0, "y": 2.0, "yaw": 0.0})
+    assert r.status_code == 409 and r.get_json()["error"] == "wrong_mode"
+    assert poses == []
+
+
+@pytest.mark.parametrize("body, code", [
+    ({}, "bad_request"), ({"x": 1.0}, "bad_request"), ({"name": "nowhere"}, "unknown_waypoint"),
+    ({"x": 2e6, "y": 0, "yaw": 0}, "bad_waypoint"), ({"name": "dock", "yaw": 1}, "bad_request"),
+])
+def test_bad_poses_are_refused(client, modes, poses, body, code):
+    client.post("/mode", json={"mode": "navigation", "wait": 5})
+    r = client.post("/pose", json=body)
+    assert r.get_json()["error"] == code and 400 <= r.status_code < 500
+    assert poses == []
+
+
+def test_status_shows_the_mode(client, modes):
+    assert client.get("/status").get_json()["mode"] == modes.status()
+
+
+def test_a_server_without_a_stack_says_so_and_refuses_switches(robot_config, store):
+    client = create_app(robot_config, FakeRobot(), store).test_client()
+    mode = client.get("/mode").get_json()
+    assert (mode["mode"], mode["map"], mode["state"]) == ("navigation", None, "running")
+    assert "modes.stack: none" in mode["message"]
+    r = client.post("/mode", json={"mode": "mapping"})
+    assert r.status_code == 409 and r.get_json()["error"] == "modes_off"
