@@ -63,6 +63,10 @@ class PathFollower:
         self.state = TURN_TO_GOAL
         return 0.0, self._turn(error)
 
+    def remaining(self, pose):
+        """The points still to drive from ``pose``: where the robot is, then the corners not yet passed."""
+        return [(pose.x, pose.y)] + self.path[self._next:]
+
     def reached(self, pose):
         """True when ``pose`` is within the goal tolerances."""
         lim = self.limits

@@ -8,6 +8,16 @@ localized pose. The goal succeeds once the robot stands still within
 ``xy_goal_tolerance`` and ``yaw_goal_tolerance``; a cancel (or a newer goal)
 preempts it, and a robot that stops making progress aborts it. Goals on
 ``move_base_simple/goal`` are forwarded to the action, as move_base does.
+
+Every plan is published as a ``nav_msgs/Path`` in the map frame on
+``plan_topic`` (navfn's ``move_base/NavfnROS/plan``). The planner can be
+swapped (``set_planner``: the known map in navigation mode, the growing SLAM
+map in mapping mode); a planner that can tell when its map grew an obstacle
+across the path (``path_blocked``, the SLAM map's) is asked once a second
+while the robot drives, and the path is planned again if so, as move_base does
+on its growing costmap. ``withdraw()`` takes the action server away entirely
+(idle mode: to the server it looks like no move_base at all) and ``serve()``
+brings a new one up.
 """
 
 import logging
@@ -19,43 +29,76 @@ import actionlib
 import rospy
 from geometry_msgs.msg import PoseStamped, Twist
 from move_base_msgs.msg import MoveBaseAction, MoveBaseActionGoal, MoveBaseFeedback, MoveBaseResult
+from nav_msgs.msg import Path
 
 from flask_move_server.errors import PlanningFailed
-from flask_move_server.geometry import normalize_angle
+from flask_move_server.geometry import Pose2D, normalize_angle
 from flask_move_server.ros.convert import pose_from_msg, pose_stamped, twist
 from flask_move_server.sim.follower import DONE, PathFollower
 
 log = logging.getLogger(__name__)
+
+REPLAN_CHECK_PERIOD = 1.0  # s of real time between "is the path still free on the grown map?" checks
 
 
 class MoveBaseStandIn:
     """Plans on the simulated map and drives the real base controller along the path."""
 
     def __init__(self, sim_config, action, cmd_vel_topic, simple_goal_topic, frames, node, planner, limits,
-                 pose_source):
+                 pose_source, plan_topic=None, serve=True):
         self.config = sim_config
         self.action = action
         self.frames = frames
         self.planner = planner
         self.limits = limits
         self.pose = pose_source
-        self._topics = (cmd_vel_topic, simple_goal_topic)
-        self._server = None
+        self._topics = (cmd_vel_topic, simple_goal_topic, plan_topic)
+        self._lock = threading.Lock()
+        self._serving = serve
+        self._endpoint = None
+        self._cmd_vel = None
         self._closed = threading.Event()
         self.goals = 0
+        self.plans = 0
         node.when_ready(self._setup)
 
     def _setup(self):
-        if self._closed.is_set():
-            return
-        cmd_vel_topic, simple_goal_topic = self._topics
-        self._cmd_vel = rospy.Publisher(cmd_vel_topic, Twist, queue_size=1, tcp_nodelay=True)
-        self._forward = rospy.Publisher(self.action + "/goal", MoveBaseActionGoal, queue_size=1)
-        self._simple_sub = rospy.Subscriber(simple_goal_topic, PoseStamped, self._on_simple_goal, queue_size=1)
-        self._server = actionlib.SimpleActionServer(self.action, MoveBaseAction, execute_cb=self._execute,
-                                                    auto_start=False)
-        self._server.start()
-        log.info("move_base stand-in serving the action %s", rospy.resolve_name(self.action))
+        cmd_vel_topic, simple_goal_topic, plan_topic = self._topics
+        with self._lock:
+            if self._closed.is_set():
+                return
+            self._cmd_vel = rospy.Publisher(cmd_vel_topic, Twist, queue_size=1, tcp_nodelay=True)
+            self._forward = rospy.Publisher(self.action + "/goal", MoveBaseActionGoal, queue_size=1)
+            self._plan_pub = rospy.Publisher(plan_topic, Path, queue_size=1, latch=True) if plan_topic else None
+            self._simple_sub = rospy.Subscriber(simple_goal_topic, PoseStamped, self._on_simple_goal, queue_size=1)
+            if self._serving:
+                self._endpoint = _Endpoint(self.action, self._execute)
+        log.info("move_base stand-in %s the action %s", "serving" if self._serving else "not serving",
+                 rospy.resolve_name(self.action))
+
+    def set_planner(self, planner):
+        """Plan the next goals on ``planner`` (a goal under way keeps the one it started with)."""
+        self.planner = planner
+
+    @property
+    def serving(self):
+        """True while the action server is up (or will be, once the node connects)."""
+        return self._serving and not self._closed.is_set()
+
+    def serve(self):
+        """Bring the action server up (at once, or when the node connects). Idempotent."""
+        with self._lock:
+            self._serving = True
+            if self._cmd_vel is not None and self._endpoint is None and not self._closed.is_set():
+                self._endpoint = _Endpoint(self.action, self._execute)
+
+    def withdraw(self):
+        """Take the action server away: the goal under way is aborted, then every action topic goes."""
+        with self._lock:
+            self._serving = False
+            endpoint, self._endpoint = self._endpoint, None
+        if endpoint is not None:
+            endpoint.close()
 
     def _on_simple_goal(self, msg):
         goal = MoveBaseActionGoal()
@@ -67,26 +110,30 @@ class MoveBaseStandIn:
 
     # one goal ---------------------------------------------------------------------
 
-    def _execute(self, goal):
+    def _execute(self, endpoint, goal):
         self.goals += 1
         target = goal.target_pose
+        server = endpoint.server
         try:
             follower = self._plan(target)
         except PlanningFailed as exc:
             log.warning("move_base stand-in: aborting the goal: %s", exc)
-            self._server.set_aborted(MoveBaseResult(), str(exc))
+            server.set_aborted(MoveBaseResult(), str(exc))
             return
-        outcome, text = self._follow(follower, target)
+        try:
+            outcome, text = self._follow(endpoint, follower, target)
+        except PlanningFailed as exc:
+            outcome, text = "aborted", str(exc)
         self._publish_velocity(0.0, 0.0)
         log.info("move_base stand-in: goal %s (%s)", outcome, text)
         if outcome == "succeeded":
-            self._server.set_succeeded(MoveBaseResult(), text)
+            server.set_succeeded(MoveBaseResult(), text)
         elif outcome == "preempted":
-            self._server.set_preempted(MoveBaseResult(), text)
+            server.set_preempted(MoveBaseResult(), text)
         else:
-            self._server.set_aborted(MoveBaseResult(), text)
+            server.set_aborted(MoveBaseResult(), text)
 
-    def _plan(self, target):
+    def _plan(self, target, planner=None):
         frame = target.header.frame_id.lstrip("/")
         if frame not in ("", self.frames.map):
             raise PlanningFailed("frame", "goal in frame {!r}: the simulator plans in {!r}".format(
@@ -96,22 +143,27 @@ class MoveBaseStandIn:
         if not all(math.isfinite(v) for v in (p.x, p.y, norm)) or abs(norm - 1.0) > 0.01:
             raise PlanningFailed("invalid", "the goal's position or orientation quaternion is invalid")
         here = self.pose()
-        path = self.planner.plan((here.x, here.y), (p.x, p.y))
+        path = (planner or self.planner).plan((here.x, here.y), (p.x, p.y))
+        self._publish_plan(path)
         return PathFollower(path, pose_from_msg(target.pose).yaw, self.limits)
 
-    def _follow(self, follower, target):
+    def _follow(self, endpoint, follower, target):
         """Drive along the path until reached, preempted or stuck: (outcome, text)."""
         factor = self.config.speed_factor
         period = max(0.01, 1.0 / (self.config.control_rate * factor))  # at most 100 Hz, however fast the sim
         stuck = _ProgressWatch(self.config.stuck_timeout / factor)
+        replan = _ReplanWatch(self.planner)
         settle_until = None
-        while not rospy.is_shutdown() and not self._closed.is_set():
-            if self._server.is_preempt_requested():
+        while not rospy.is_shutdown() and not self._closed.is_set() and not endpoint.withdrawn.is_set():
+            if endpoint.server.is_preempt_requested():
                 return "preempted", "canceled"
             pose = self.pose()
+            if replan.due(follower.remaining(pose), time.monotonic()):
+                log.info("move_base stand-in: an obstacle seen across the path: planning again")
+                follower = self._plan(target, replan.planner)
             linear, angular = follower.command(pose)
             self._publish_velocity(linear, angular)
-            self._feedback(target, pose)
+            self._feedback(endpoint.server, target, pose)
             if follower.state == DONE:
                 settle_until = settle_until or time.monotonic() + 0.3 / factor
                 if time.monotonic() >= settle_until and follower.reached(self.pose()):
@@ -121,29 +173,105 @@ class MoveBaseStandIn:
             if stuck.stalled(pose, time.monotonic()):
                 return "aborted", "the robot made no progress for {} s".format(self.config.stuck_timeout)
             time.sleep(period)
-        return "aborted", "shutting down"
+        return "aborted", "the navigation stack stopped"
 
     def _publish_velocity(self, linear, angular):
         self._cmd_vel.publish(twist(linear, angular))
 
-    def _feedback(self, target, pose):
+    def _publish_plan(self, points):
+        self.plans += 1
+        if self._plan_pub is not None:
+            self._plan_pub.publish(path_message(points, self.frames.map, rospy.Time.now()))
+
+    def _feedback(self, server, target, pose):
         feedback = MoveBaseFeedback()
         feedback.base_position = pose_stamped(pose, self.frames.map, rospy.Time.now())
-        self._server.publish_feedback(feedback)
+        server.publish_feedback(feedback)
 
     def close(self):
         """End the goal under way (aborted), stop taking goals. Idempotent."""
-        if self._closed.is_set():
-            return
-        self._closed.set()
-        if self._server is None:
-            return
-        self._simple_sub.unregister()
-        # actionlib servers have no stop(): stop listening; the result topics stay for the last answer.
-        for attr in ("goal_sub", "cancel_sub"):
-            topic = getattr(self._server.action_server, attr, None)
-            if topic is not None:
-                topic.unregister()
+        with self._lock:
+            if self._closed.is_set():
+                return
+            self._closed.set()
+            endpoint, self._endpoint = self._endpoint, None
+            ready = self._cmd_vel is not None
+        if endpoint is not None:
+            endpoint.close()
+        if ready:
+            self._simple_sub.unregister()
+            for pub in (self._forward, self._plan_pub):
+                if pub is not None:
+                    pub.unregister()
+
+
+class _Endpoint:
+    """One life of the action server: up in navigation and mapping modes, gone in idle.
+
+    actionlib's SimpleActionServer has no way to stop: its execute thread and
+    its ActionServer's status timer run until rospy shuts down. Closing ends
+    both (the goal under way first: ``withdrawn`` makes the stand-in abort it),
+    then unregisters every action topic, so clients see the server gone.
+    """
+
+    def __init__(self, action, execute):
+        self.withdrawn = threading.Event()
+        self.server = actionlib.SimpleActionServer(action, MoveBaseAction, execute_cb=lambda goal: execute(self, goal),
+                                                   auto_start=False)
+        self.server.start()
+
+    def close(self):
+        self.withdrawn.set()
+        server = self.server
+        with server.terminate_mutex:
+            server.need_to_terminate = True
+        with server.execute_condition:
+            server.execute_condition.notify()
+        if server.execute_thread is not threading.current_thread():
+            server.execute_thread.join(timeout=5)
+        actions = server.action_server
+        timer = actions.status_timer
+        if timer is not None:  # stopped and joined first: it must not publish on unregistered topics
+            timer.shutdown()
+            timer.join(timeout=2)
+        time.sleep(0.05)  # the aborted goal's result is still in the publisher's queue
+        actions.stop()
+
+
+class _ReplanWatch:
+    """Asks a growing map's planner, once a second and only when the map changed, whether the path is blocked."""
+
+    def __init__(self, planner):
+        self.planner = planner
+        self._blocked = getattr(planner, "path_blocked", None)
+        self._version = self._map_version()
+        self._next_check = time.monotonic() + REPLAN_CHECK_PERIOD
+
+    def _map_version(self):
+        slam = getattr(self.planner, "slam", None)
+        return None if slam is None else slam.version
+
+    def due(self, remaining, now):
+        """True when the map grew an obstacle across ``remaining`` (the points still to drive)."""
+        if self._blocked is None or now < self._next_check:
+            return False
+        self._next_check = now + REPLAN_CHECK_PERIOD
+        version = self._map_version()
+        if version == self._version:
+            return False
+        self._version = version
+        return self._blocked(remaining)
+
+
+def path_message(points, frame, stamp):
+    """A nav_msgs/Path through ``points`` (x, y), each pose facing the next point."""
+    msg = Path()
+    msg.header.frame_id, msg.header.stamp = frame, stamp
+    for i, (x, y) in enumerate(points):
+        a, b = (points[i], points[i + 1]) if i + 1 < len(points) else (points[max(0, i - 1)], points[i])
+        yaw = math.atan2(b[1] - a[1], b[0] - a[0]) if a != b else 0.0
+        msg.poses.append(pose_stamped(Pose2D(x, y, yaw), frame, stamp))
+    return msg
 
 
 class _ProgressWatch:

@@ -39,9 +39,17 @@ def default_map():
 
 
 class Simulation:
-    """The simulated world and the move_base stand-in, built on the server's node and drive."""
+    """The simulated world, the move_base stand-in and the modes' stack, built on the server's node and drive.
 
-    def __init__(self, config, node, drive):
+    ``stacks`` is the stack backend of the modes (``modes/simulated.py``) for the
+    mode manager. With ``autostart`` (the default) the simulation begins in
+    navigation on its own map, as ``--sim`` always did; a mode manager that
+    restores a mode itself passes ``autostart=False``, so nothing runs until it
+    calls ``stacks.start``.
+    """
+
+    def __init__(self, config, node, drive, autostart=True):
+        from flask_move_server.modes.simulated import SimulatedStack
         from flask_move_server.sim import costmap, laser, occupancy, planner
         from flask_move_server.sim.body import RobotBody
         from flask_move_server.sim.move_base import MoveBaseStandIn
@@ -61,12 +69,18 @@ class Simulation:
             raise ConfigError(self.map_path, "origin", "the robot starts at x=0, y=0 of the map frame, "
                               "which is in or too close to an obstacle (or off the map)")
         self.world = SimWorld(config, node, self.body, laser.Laser(grid), wheel_speeds)
+        own_planner = planner.Planner(self.costmap)
         self.move_base = MoveBaseStandIn(
             sim, config.navigation.action, config.drive.cmd_vel_topic, config.navigation.simple_goal_topic,
-            config.ros.frames, node, planner.Planner(self.costmap), follower_limits(sim), self.world.pose)
+            config.ros.frames, node, own_planner, follower_limits(sim), self.world.pose,
+            plan_topic=config.navigation.plan_topic, serve=False)
+        self.stacks = SimulatedStack(config, node, self.world, self.move_base, (self.map_path, grid, own_planner))
+        if autostart:
+            self.stacks.begin("navigation", None)
 
     def close(self):
-        """Stop the stand-in, then the world. Idempotent."""
+        """Stop the mode, the stand-in, then the world. Idempotent."""
+        self.stacks.close()
         self.move_base.close()
         self.world.close()
 

@@ -1,4 +1,4 @@
-"""The simulated world's ROS side: the robot's true motion, /map, /scan, and an AMCL stand-in.
+"""The simulated world's ROS side: the robot's true motion, /scan, /initialpose, and an AMCL stand-in.
 
 A thread moves the :class:`~flask_move_server.sim.body.RobotBody` by the
 ground speeds the sim motor backend reports (``wheel_speeds()``: the duties
@@ -6,8 +6,12 @@ the real base controller applied), ``speed_factor`` times faster than real
 time when asked. The base controller's own odometry arrives on ``/odom``; for
 each message the world publishes what AMCL would: tf ``map → odom`` such that
 ``map → odom → base_link`` is the true pose at that message's stamp
-(true pose ∘ odometry⁻¹), and ``/amcl_pose``. The map is published latched on
-``/map``; ``/scan`` is cast at ``scan_rate`` while someone listens.
+(true pose ∘ odometry⁻¹), and ``/amcl_pose``, while ``localizing`` (navigation
+mode; in mapping mode the simulated SLAM publishes ``map → odom`` instead, and in
+idle nobody does). ``/scan`` is cast at ``scan_rate`` while someone listens.
+``/map`` is not the world's: the mode in force publishes it (``map_server.py``,
+``mapping.py``). A pose on ``/initialpose`` (RViz's 2D Pose Estimate) puts the
+robot there, if its body fits: the sim takes the estimate as the truth.
 """
 
 import collections
@@ -18,7 +22,7 @@ import time
 import rospy
 import tf2_ros
 from geometry_msgs.msg import PoseWithCovarianceStamped
-from nav_msgs.msg import OccupancyGrid, Odometry
+from nav_msgs.msg import Odometry
 from sensor_msgs.msg import LaserScan
 
 from flask_move_server.geometry import compose, interpolate, inverse
@@ -36,6 +40,7 @@ class SimWorld:
         sim_config = config.sim
         self.config = sim_config
         self._amcl_topic = config.navigation.amcl_pose_topic
+        self._initial_pose_topic = config.modes.initial_pose_topic
         self.frames = config.ros.frames
         self.body = body
         self.laser = laser
@@ -43,8 +48,10 @@ class SimWorld:
         self._wheel_speeds = wheel_speeds
         self._history = collections.deque(maxlen=max(10, int(sim_config.rate * 3)))
         self._stop = threading.Event()
+        self.localizing = threading.Event()  # set: publish map → odom and /amcl_pose (the navigation mode sets it)
         self._thread = None
         self._pubs = None
+        self._subs = ()
         self.steps = 0  # world updates so far, and the longest gap between two (real time kept?)
         self.started = None
         self.longest_step = 0.0
@@ -53,15 +60,14 @@ class SimWorld:
     def _setup(self):
         if self._stop.is_set():
             return
-        grid_pub = rospy.Publisher(self.config.map_topic, OccupancyGrid, queue_size=1, latch=True)
-        grid_pub.publish(occupancy_grid_message(self.body.costmap.grid, self.frames.map))
         self._pubs = {
-            "map": grid_pub,
             "scan": rospy.Publisher(self.config.scan_topic, LaserScan, queue_size=1),
             "amcl": rospy.Publisher(self._amcl_topic, PoseWithCovarianceStamped, queue_size=1),
             "tf": tf2_ros.TransformBroadcaster(),
         }
-        self._odom_sub = rospy.Subscriber(self._odom_topic, Odometry, self._on_odom, queue_size=5)
+        self._subs = (rospy.Subscriber(self._odom_topic, Odometry, self._on_odom, queue_size=5),
+                      rospy.Subscriber(self._initial_pose_topic, PoseWithCovarianceStamped, self._on_initial_pose,
+                                       queue_size=1))
         self._thread = threading.Thread(target=self._run, name="sim-world", daemon=True)
         self._thread.start()
         log.info("simulated world: map %s (%d x %d cells, %.3f m), robot at %s, speed factor %s",
@@ -101,7 +107,7 @@ class SimWorld:
     # the AMCL stand-in -------------------------------------------------------------
 
     def _on_odom(self, msg):
-        if self._stop.is_set():
+        if self._stop.is_set() or not self.localizing.is_set():
             return
         odom = pose_from_msg(msg.pose.pose)
         true = self.pose_at(msg.header.stamp.to_sec())
@@ -109,6 +115,24 @@ class SimWorld:
         self._pubs["tf"].sendTransform(
             transform_message(map_to_odom, msg.header.stamp, self.frames.map, msg.header.frame_id or self.frames.odom))
         self._pubs["amcl"].publish(amcl_pose_message(true, msg.header.stamp, self.frames.map))
+
+    def _on_initial_pose(self, msg):
+        frame = msg.header.frame_id.lstrip("/")
+        if frame not in ("", self.frames.map):
+            log.warning("simulated world: ignoring /initialpose in frame %r (the sim takes %r)", frame, self.frames.map)
+            return
+        self.teleport(pose_from_msg(msg.pose.pose))
+
+    def teleport(self, pose):
+        """Put the robot at ``pose`` (map frame == world frame) if its body fits there; True when it does."""
+        if not self.body.place(pose):
+            log.warning("simulated world: ignoring the pose estimate %s: the robot does not fit there "
+                        "(in or too close to an obstacle, or off the map)", pose.as_dict())
+            return False
+        self._history.clear()
+        self._history.append((rospy.get_time(), pose))
+        log.info("simulated world: the robot was put at %s (a pose estimate taken as the truth)", pose.as_dict())
+        return True
 
     def pose_at(self, stamp):
         """The true pose at ROS time ``stamp`` (seconds), interpolated from the recent history."""
@@ -134,25 +158,11 @@ class SimWorld:
             log.info("simulated world: %d updates in %.1f s (%.1f Hz, target %.0f Hz), longest gap %.0f ms",
                      self.steps, elapsed, self.steps / max(elapsed, 1e-9), self.config.rate, self.longest_step * 1e3)
         if self._pubs is not None:
-            self._odom_sub.unregister()
-            for name in ("map", "scan", "amcl"):
+            for sub in self._subs:
+                sub.unregister()
+            for name in ("scan", "amcl"):
                 self._pubs[name].unregister()
             self._pubs = None
-
-
-def occupancy_grid_message(grid, frame):
-    """The map as a nav_msgs/OccupancyGrid (cell values clamped to -1..100)."""
-    msg = OccupancyGrid()
-    msg.header.frame_id = frame
-    msg.header.stamp = rospy.Time.now()
-    info = msg.info
-    info.map_load_time = msg.header.stamp
-    info.resolution = grid.resolution
-    info.width, info.height = grid.width, grid.height
-    info.origin.position.x, info.origin.position.y = grid.origin_x, grid.origin_y
-    info.origin.orientation.w = 1.0
-    msg.data = [v if -1 <= v <= 100 else 100 for v in grid.cells]
-    return msg
 
 
 def scan_message(laser, ranges, frame, rate):
