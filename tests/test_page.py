@@ -265,3 +265,30 @@ def test_the_desktop_layout_shows_map_and_panel_side_by_side(sim, browser):
     assert page.locator("#stop").is_visible()
     screenshot(page, "desktop")
     page.close()
+
+
+def test_set_pose_mode_moves_the_robots_pose(sim, page):
+    at_rest(sim)
+    page.locator("#gesture button[data-gesture=pose]").tap()
+    assert "where the robot really is" in page.inner_text("#hint")
+    screen = Screen(page, sim)
+    start = screen.screen(2.0, 0.5)  # free floor, away from where the robot stands
+    finger = Finger(page, on_page(page, start))
+    for step in range(1, 6):  # drag straight up: facing +y
+        finger.move(on_page(page, (start[0], start[1] - 8 * step)))
+    finger.lift()
+    wx, wy = screen.world(*start)
+    wait_for(lambda: math.hypot(sim.pose()["x"] - wx, sim.pose()["y"] - wy) <= screen.tolerance + 0.05, timeout=10,
+             message="the robot's pose to move to the pressed point")
+    assert angle_error(sim.pose()["yaw"], math.pi / 2) < 0.15
+    assert sim.status()["navigation"]["state"] != "active", "a pose estimate is not a goal"
+    page.wait_for_function("document.getElementById('map').dataset.gesture === 'go'")  # back to Go after one
+
+
+def test_the_plan_is_drawn_while_the_robot_drives(sim, page):
+    at_rest(sim)
+    sim.post("/goto", {"name": "bedroom"})
+    page.wait_for_function("Number(document.getElementById('map').dataset.planPoints) > 1", timeout=15000)
+    screenshot(page, "phone-plan")
+    sim.post("/stop")
+    page.wait_for_function("Number(document.getElementById('map').dataset.planPoints) === 0", timeout=15000)

@@ -337,6 +337,7 @@ export class MapView {
     set(ds, "imageRect", this.image && this.meta ? this.imageRect().map((v) => v.toFixed(2)).join(",") : "");
     set(ds, "view", [this.view.scale, this.view.ox, this.view.oy].map((v) => v.toFixed(3)).join(","));
     set(ds, "follow", this.follow ? "1" : "0");
+    set(ds, "planPoints", String(this.plan.length));
   }
 }
 
