@@ -56,17 +56,23 @@ function showEstop(estop) {
 
 // ---- the map, the waypoints ------------------------------------------------------------
 
+let mapLoads = 0;  // only the newest of overlapping loads may draw (map events can come quickly while mapping)
+
 async function loadMap() {
+  const mine = ++mapLoads;
   let meta;
   try { meta = await api("GET", "/map"); } catch (e) {
-    $("map-note").textContent = e.status === 404 ? "no map yet" : e.message;
+    if (mine !== mapLoads) return;
+    if (e.status === 404) { map.setMap(null); mapVersion = mapEtag = null; }
+    $("map-note").textContent = e.status === 404 ? "no map in use" : e.message;
     return;
   }
   const headers = mapEtag && meta.version === mapVersion ? {"If-None-Match": mapEtag} : {};
   const response = await authorisedFetch("/map/image", {headers});
-  if (response.status === 304) return;
+  if (response.status === 304) { $("map-note").textContent = ""; return; }
   if (!response.ok) { $("map-note").textContent = "the map image did not load"; return; }
   const image = await createImageBitmap(await response.blob());
+  if (mine !== mapLoads) return;
   mapEtag = response.headers.get("ETag");
   mapVersion = meta.version;
   map.setMap(meta, image);
@@ -192,7 +198,7 @@ live.on("estop", showEstop);
 live.on("plan", (p) => map.setPlan(p.poses));
 live.on("waypoints", () => quietly(loadWaypoints()));
 live.on("map", (m) => { if (m.version !== mapVersion) quietly(loadMap()); });
-live.on("mode", (m) => { showMode(m); quietly(loadMaps()); });
+live.on("mode", (m) => { showMode(m); quietly(loadMaps()); quietly(loadMap()); });
 
 // ---- controls -------------------------------------------------------------------------
 

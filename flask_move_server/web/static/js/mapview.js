@@ -39,7 +39,13 @@ export class MapView {
 
   // ---- what it shows -------------------------------------------------------------------
 
+  /** Shows the map `GET /map` describes (`meta`) as `image`; null: no map in use now. */
   setMap(meta, image) {
+    if (!meta) {
+      this.meta = this.image = null;
+      this.canvas.dataset.mapVersion = "";
+      return;
+    }
     const origin = Array.isArray(meta.origin) ? meta.origin : [meta.origin.x, meta.origin.y];
     this.meta = {resolution: meta.resolution, originX: origin[0], originY: origin[1],
                  width: meta.width, height: meta.height, version: meta.version};

@@ -44,8 +44,9 @@ function mapRow(m, active) {
   const name = document.createElement("span");
   name.className = "name";
   name.textContent = m.name;
-  li.append(img, name, button("Use", "needs-live", () => useMap(m.name)),
-    button("Delete", "quiet", () => deleteMap(m.name)));
+  const use = button("Use", "needs-live", () => useMap(m.name));
+  use.hidden = active;
+  li.append(img, name, use, button("Delete", "quiet", () => deleteMap(m.name)));
   return li;
 }
 
