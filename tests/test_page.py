@@ -16,6 +16,7 @@ pytest.importorskip("playwright", reason="playwright is not installed (pip insta
 from tests.conftest import wait_for  # noqa: E402
 from tests.page_browser import (  # noqa: E402
     DESKTOP,
+    PHONE,
     Browser,
     Finger,
     PageSim,
@@ -256,14 +257,32 @@ def test_the_e_stop_latches_shows_and_is_released(sim, page):
     assert sim.status()["estop"]["latched"] is False
 
 
-def test_the_desktop_layout_shows_map_and_panel_side_by_side(sim, browser):
-    page = browser.open(sim.url + "/", device=DESKTOP)
+def uncovered(page, selector):
+    """True when points near the element's corners and centre are on screen and a finger there touches it."""
+    return page.evaluate("""(selector) => {
+      const el = document.querySelector(selector), r = el.getBoundingClientRect();
+      const at = (fx, fy) => [r.left + r.width * fx, r.top + r.height * fy];  // inside round corners too
+      const points = [at(.2, .2), at(.8, .2), at(.2, .8), at(.8, .8), at(.5, .5)];
+      return r.width > 0 && points.every(([x, y]) => {
+        const hit = document.elementFromPoint(x, y);
+        return hit && (el === hit || el.contains(hit));
+      });
+    }""", selector)
+
+
+LANDSCAPE = dict(PHONE, viewport={"width": 844, "height": 390})
+
+
+@pytest.mark.parametrize("device, name", [(DESKTOP, "desktop"), (LANDSCAPE, "phone-landscape")])
+def test_wide_screens_show_map_and_panel_side_by_side(sim, browser, device, name):
+    page = browser.open(sim.url + "/", device=device)
     live(page)
-    page.wait_for_function("document.getElementById('map').dataset.robotPx")
+    page.wait_for_function("document.getElementById('map').dataset.imageRect")
     board, panel = canvas_box(page), page.locator("#panel").bounding_box()
-    assert panel["x"] >= board["x"] + board["width"] - 1 and board["width"] > 600
-    assert page.locator("#stop").is_visible()
-    screenshot(page, "desktop")
+    assert panel["x"] >= board["x"] + board["width"] - 1 and board["width"] > panel["width"]
+    for control in ("#stop", "#pad", "#estop", "#gesture button[data-gesture=look]", "#fit"):
+        assert uncovered(page, control), control + " is hidden or covered"
+    screenshot(page, name)
     page.close()
 
 
@@ -292,3 +311,17 @@ def test_the_plan_is_drawn_while_the_robot_drives(sim, page):
     screenshot(page, "phone-plan")
     sim.post("/stop")
     page.wait_for_function("Number(document.getElementById('map').dataset.planPoints) === 0", timeout=15000)
+
+
+def test_a_goal_it_cannot_reach_says_why(sim, page):
+    at_rest(sim)
+    screen = Screen(page, sim)
+    start = screen.screen(4.6, -1.5)  # the demo flat's locked store room
+    finger = Finger(page, on_page(page, start))
+    finger.move(on_page(page, (start[0] + 30, start[1])))
+    finger.lift()
+    page.wait_for_function("['aborted', 'rejected'].includes(document.getElementById('nav').dataset.state)",
+                           timeout=30000)
+    text = page.inner_text("#nav-text")
+    message = sim.status()["navigation"]["message"]
+    assert text.startswith("failed: ") and (message is None or message in text), (text, message)

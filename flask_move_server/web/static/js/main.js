@@ -44,7 +44,7 @@ function showStatus(status) {
   if (m) {
     $("motors").dataset.left = String(m.left);
     $("motors").dataset.right = String(m.right);
-    $("motors").textContent = "motors " + Number(m.left).toFixed(2) + " / " + Number(m.right).toFixed(2);
+    $("motors").textContent = "motors\n" + Number(m.left).toFixed(2) + " / " + Number(m.right).toFixed(2);
   }
 }
 
