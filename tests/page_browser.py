@@ -24,7 +24,8 @@ PHONE = {"viewport": {"width": 390, "height": 844}, "has_touch": True, "is_mobil
 DESKTOP = {"viewport": {"width": 1280, "height": 800}}
 SPEED_FACTOR = 4.0
 DEMO_WAYPOINTS = os.path.join(ROOT, "config", "waypoints.demo.yaml")
-IMAGES = os.path.join(ROOT, "docs", "images")
+# Pictures go to build/screenshots; PAGE_SCREENSHOTS=docs/images refreshes the ones docs/phone.md shows.
+IMAGES = os.path.join(ROOT, os.environ.get("PAGE_SCREENSHOTS", os.path.join("build", "screenshots")))
 
 
 class PageSim(ServerProcess):
@@ -129,7 +130,7 @@ def canvas_box(page):
 
 
 def screenshot(page, name):
-    """A picture for docs/phone.md (docs/images/NAME.png), from the test run that checked the page."""
+    """A picture of the page as a test left it (NAME.png in IMAGES), for docs/phone.md."""
     os.makedirs(IMAGES, exist_ok=True)
     page.screenshot(path=os.path.join(IMAGES, name + ".png"))
 

@@ -187,7 +187,6 @@ def test_press_and_drag_sends_a_goal_with_its_heading(sim, page):
     wx, wy = screen.world(*start)
     assert math.hypot(goal["x"] - wx, goal["y"] - wy) <= screen.tolerance, (goal, wx, wy)
     assert angle_error(goal["yaw"], 3 * math.pi / 4) < 0.1, goal
-    screenshot(page, "phone-goal")
     wait_for(lambda: sim.status()["navigation"]["state"] == "succeeded", timeout=60, message="the robot to arrive")
     pose = sim.pose()
     assert math.hypot(pose["x"] - goal["x"], pose["y"] - goal["y"]) < 0.15
