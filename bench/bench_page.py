@@ -5,7 +5,7 @@
 Starts ``flask-move-server --sim`` (its own ROS master) and opens the page ``--loads`` times, each
 in a fresh browser context (nothing cached), at phone size (390×844, touch). For each load: first
 contentful paint (the browser's own paint timing), the moment the page is connected (live or
-polling) and the moment the robot is drawn on the map. The weight is every byte the page's files
+polling), the moment the robot is drawn and the moment the map image is. The weight is every byte the page's files
 take (what the server sends for them, the map image aside). Targets (issue 13): <= 150 KB, first
 paint <= 1 s. Needs Playwright (the ``test`` extra) and /usr/bin/chromium.
 
@@ -95,11 +95,14 @@ def load(browser, url):
     connected = (time.monotonic() - started) * 1000
     page.wait_for_function("document.getElementById('map').dataset.robotPx")
     drawn = (time.monotonic() - started) * 1000
+    page.wait_for_function("document.getElementById('map').dataset.imageRect")
+    mapped = (time.monotonic() - started) * 1000
     timing = page.evaluate(TIMING)
     files = [r for r in responses if r.url.rstrip("/") == url or "/static/" in r.url]
     size = sum(len(r.body()) for r in files)
+    image = len(requests.get(url + "/map/image", timeout=10).content)
     context.close()
-    return timing["paint"], connected, drawn, size, len(files)
+    return timing["paint"], connected, drawn, size, len(files), mapped, image
 
 
 def main():
@@ -124,18 +127,19 @@ def main():
 
 def report(runs):
     stored, stored_files = files_on_disk()
-    paints, connected, drawn = ([r[i] for r in runs if r[i] is not None] for i in range(3))
+    paints, connected, drawn, mapped = ([r[i] for r in runs if r[i] is not None] for i in (0, 1, 2, 5))
     print("\n## The phone page ({} cold loads, 390×844, Debian's chromium, loopback)\n".format(len(runs)))
     print("| measure | median | max |")
     print("|---|---:|---:|")
     for name, values in (("first contentful paint", paints), ("connected (live or polling)", connected),
-                         ("robot drawn on the map", drawn)):
+                         ("robot drawn", drawn), ("map image drawn", mapped)):
         print("| {} | {:.0f} ms | {:.0f} ms |".format(name, statistics.median(values), max(values)))
     print("\n| weight | value |")
     print("|---|---:|")
     print("| the page's files as sent (the map image aside) | {:.1f} KB in {} files |".format(runs[0][3] / 1024,
                                                                                           runs[0][4]))
     print("| static/ on disk | {:.1f} KB in {} files |".format(stored / 1024, stored_files))
+    print("| the map image (`/map/image`, the demo flat) | {:.1f} KB |".format(runs[0][6] / 1024))
 
 
 if __name__ == "__main__":
