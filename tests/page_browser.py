@@ -82,11 +82,11 @@ class Browser:
         self.browser = self._playwright.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS, headless=True)
         self.contexts = []
 
-    def open(self, url, device=PHONE, answers=None):
+    def open(self, url, device=PHONE, answers=None, before=None):
         """A page at ``url``; ``page.answers``: replies to its prompt/confirm dialogs, in order, each used once.
 
         A string answers a prompt, True accepts a confirm, False (or nothing left) dismisses; every
-        question asked is kept in ``page.asked``.
+        question asked is kept in ``page.asked``. ``before(page)`` runs before the page loads (routes).
         """
         context = self.browser.new_context(**device)
         self.contexts.append(context)
@@ -104,6 +104,8 @@ class Browser:
             else:
                 dialog.accept(reply if isinstance(reply, str) else "")
         page.on("dialog", answer)
+        if before:
+            before(page)
         page.goto(url)
         return page
 

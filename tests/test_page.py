@@ -324,3 +324,26 @@ def test_a_goal_it_cannot_reach_says_why(sim, page):
     text = page.inner_text("#nav-text")
     message = sim.status()["navigation"]["message"]
     assert text.startswith("failed: ") and (message is None or message in text), (text, message)
+
+
+@pytest.mark.parametrize("status, body", [
+    (404, {"status": "error", "error": "not_found", "message": "No such endpoint."}),  # a server before /events
+    (503, {"status": "error", "error": "too_many_streams", "message": "Every stream is taken."}),
+])
+def test_without_a_stream_the_page_polls_and_still_follows_the_robot(sim, browser, status, body):
+    at_rest(sim)
+
+    def no_stream(page):
+        page.route("**/events", lambda route: route.fulfill(status=status, json=body))
+    page = browser.open(sim.url + "/", before=no_stream)
+    page.wait_for_function("document.body.dataset.connection === 'polling'", timeout=20000)
+    assert page.inner_text("#conn") == "live (polling)"
+    page.wait_for_function("document.getElementById('map').dataset.robotPx")
+    before = robot_px(page)
+    sim.post("/goto", {"name": "kitchen"})
+    page.wait_for_function("document.getElementById('nav').dataset.state === 'active'", timeout=10000)
+    page.wait_for_function("(b) => { const p = document.getElementById('map').dataset.robotPx.split(',');"
+                           " return Math.hypot(p[0] - b[0], p[1] - b[1]) > 10; }", arg=before, timeout=20000)
+    assert page.get_attribute("#map", "data-robot-stale") == "0"
+    sim.post("/stop")
+    page.close()

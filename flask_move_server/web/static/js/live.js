@@ -9,6 +9,7 @@ import {authorisedFetch, api} from "./api.js";
 const IDLE_LIMIT_MS = 35000;  // no byte for this long (the server sends a heartbeat every ~15 s): dead
 const BACKOFF_MS = [500, 1000, 2000, 4000, 5000];
 const POLL_MS = 200;
+const BUSY_POLL_MS = 30000;  // the robot has every stream it allows open: poll this long, then try again
 
 /** Splits a text/event-stream into events: feed() it text, it calls onEvent(type, data). */
 export class SseParser {
@@ -68,19 +69,22 @@ export class Live {
   async start() {
     for (;;) {
       const outcome = await this.stream().catch(() => "failed");
-      if (outcome === "absent") { await this.poll(); continue; }
+      if (outcome === "absent") { await this.poll(Infinity); continue; }
+      if (outcome === "busy") { await this.poll(BUSY_POLL_MS); continue; }
       this.setState("reconnecting");
       await sleep(BACKOFF_MS[Math.min(this.failures++, BACKOFF_MS.length - 1)]);
     }
   }
 
-  /** Reads one /events stream to its end: "absent" when the server has none, else "ended". */
+  /** Reads one /events stream to its end: "absent" when the server has none, "busy" when it has
+   *  no stream to spare (503 too_many_streams), else "ended". */
   async stream() {
     const abort = new AbortController();
     let watchdog = setTimeout(() => abort.abort(), IDLE_LIMIT_MS);
     try {
       const response = await authorisedFetch("/events", {headers: {"Accept": "text/event-stream"}, signal: abort.signal});
       if (response.status === 404) return "absent";
+      if (response.status === 503) return "busy";
       if (!response.ok || !response.body) return "ended";
       this.failures = 0;
       this.setState("live");
@@ -105,15 +109,17 @@ export class Live {
     this.emit(type, data);
   }
 
-  /** No /events on this server: read /status a few times a second instead, for ever. */
-  async poll() {
-    for (;;) {
+  /** No stream to read: read /status a few times a second instead, for `forMs`. */
+  async poll(forMs) {
+    const until = performance.now() + forMs;
+    for (let round = 0; performance.now() < until; round++) {
       try {
         const status = await api("GET", "/status");
         this.setState("polling");
         this.emit("pose", status.pose);
         this.emit("status", status);
         if (status.estop) this.emit("estop", status.estop);
+        if (round % 10 === 0) this.pollSlowly();
       } catch (e) {
         this.setState("reconnecting");
         await sleep(1000);
@@ -122,5 +128,14 @@ export class Live {
     }
   }
 }
+
+/** Every couple of seconds while polling: the mode (told when it changed) and the map's version. */
+Live.prototype.pollSlowly = function () {
+  api("GET", "/mode").then((mode) => {
+    const text = JSON.stringify(mode);
+    if (text !== this.lastMode) { this.lastMode = text; this.emit("mode", mode); }
+  }, () => {});
+  api("GET", "/map").then((map) => this.emit("map", map), () => {});
+};
 
 const sleep = (ms) => new Promise((resolve) => setTimeout(resolve, ms));

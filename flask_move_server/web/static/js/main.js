@@ -193,6 +193,7 @@ function resync() {
 live.onState = showConnection;
 live.onConnected = resync;
 live.on("pose", (p) => { map.setPose(p); showStaleNote(); });
+setInterval(showStaleNote, 500);  // a pose that stops coming greys the robot without any event
 live.on("status", showStatus);
 live.on("estop", showEstop);
 live.on("plan", (p) => map.setPlan(p.poses));

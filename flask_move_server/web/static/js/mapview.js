@@ -8,6 +8,7 @@
 const TAP_PX = 10;        // a press that moves less than this is a tap
 const HIT_PX = 24;        // a tap this close to a waypoint marker picks it
 const STALE_AGE_S = 1.5;  // a pose this old when the server read it greys the robot
+const SILENT_MS = 3500;   // the server tells the pose at least once a second, even at rest
 const MIN_SCALE = 2, MAX_SCALE = 800;
 
 export class MapView {
@@ -59,7 +60,7 @@ export class MapView {
       if (this.robot) this.robot.age = Infinity;
       return;
     }
-    this.robot = {x: pose.x, y: pose.y, yaw: pose.yaw, age: pose.age || 0};
+    this.robot = {x: pose.x, y: pose.y, yaw: pose.yaw, age: pose.age || 0, at: performance.now()};
     if (!this.drawn) this.drawn = {x: pose.x, y: pose.y, yaw: pose.yaw};
     if (!this.meta && !this.userMoved && !this.robotSeen) { this.robotSeen = true; this.fit(); }
   }
@@ -71,10 +72,11 @@ export class MapView {
     if (!this.meta && !this.userMoved) this.fit();
   }
 
-  /** Stale: the server's pose was old when read (pose events come only when it moves, so the
-   *  time since the last one says nothing), or the page has lost the robot. */
+  /** Stale: the server's pose was old when read, no pose came for a while (the server repeats
+   *  it every second at rest), or the page has lost the robot. */
   robotStale() {
-    return !this.robot || this.robot.age > STALE_AGE_S || Boolean(this.offline);
+    const r = this.robot;
+    return !r || r.age > STALE_AGE_S || performance.now() - r.at > SILENT_MS || Boolean(this.offline);
   }
 
   // ---- view ----------------------------------------------------------------------------
