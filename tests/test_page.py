@@ -51,6 +51,7 @@ def page(sim, browser):
     page = browser.open(sim.url + "/")
     live(page)
     page.wait_for_function("document.getElementById('map').dataset.robotPx")
+    page.wait_for_function("document.getElementById('map').dataset.imageRect")  # the sim's map: the view fitted to it
     yield page
     assert page.errors == []
     page.close()
@@ -73,24 +74,19 @@ def map_meta(sim):
 class Screen:
     """Canvas CSS px <-> metres, from the drawn image's rectangle and the server's ``/map``.
 
-    With a map this does not trust the page's own transform: the image rectangle the page drew and the
-    server's metadata (origin, resolution, size; row 0 = the top) are enough. Without one: the view.
+    This does not trust the page's own transform: the image rectangle the page drew and the server's
+    metadata (origin, resolution, size; row 0 = the top) are enough.
     """
 
     def __init__(self, page, sim):
         meta, rect = map_meta(sim), page.get_attribute("#map", "data-image-rect")
-        if meta and rect:
-            self.left, self.top, width, height = (float(v) for v in rect.split(","))
-            self.cell = meta["resolution"]
-            self.ox, self.oy = meta["origin"][:2]
-            self.rows = meta["height"]
-            self.px_x, self.px_y = width / meta["width"], height / meta["height"]  # CSS px per cell
-            self.tolerance = CELLS * self.cell  # metres
-        else:  # no map: the grid the page draws, scale px per metre, the origin at (ox, oy) on screen
-            scale, sx, sy = (float(v) for v in page.get_attribute("#map", "data-view").split(","))
-            self.cell, self.rows, self.px_x, self.px_y = 1.0, 0.0, scale, scale
-            self.left, self.top, self.ox, self.oy = sx, sy, 0.0, 0.0
-            self.tolerance = CELLS * 0.05
+        assert meta and rect, "the sim serves a map and the page draws it"
+        self.left, self.top, width, height = (float(v) for v in rect.split(","))
+        self.cell = meta["resolution"]
+        self.ox, self.oy = meta["origin"][:2]
+        self.rows = meta["height"]
+        self.px_x, self.px_y = width / meta["width"], height / meta["height"]  # CSS px per cell
+        self.tolerance = CELLS * self.cell  # metres
 
     def world(self, px, py):
         return (self.ox + (px - self.left) / self.px_x * self.cell,
