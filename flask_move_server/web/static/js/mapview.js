@@ -5,7 +5,8 @@
 // x = origin.x + col * res .. + res and y = origin.y + (height - row - 1) * res .. + res.
 // State tests read is mirrored into data-* attributes of the canvas.
 
-const TAP_PX = 10;        // a press that moves less than this is a tap
+import {drawMap, TAP_PX} from "./mapdraw.js";
+
 const HIT_PX = 24;        // a tap this close to a waypoint marker picks it
 const STALE_AGE_S = 1.5;  // a pose this old when the server read it greys the robot
 const SILENT_MS = 3500;   // the server tells the pose at least once a second, even at rest
@@ -244,96 +245,12 @@ export class MapView {
     if (Math.hypot(t.x - d.x, t.y - d.y) < 1e-4) { d.x = t.x; d.y = t.y; }
   }
 
-  draw() {
-    const ctx = this.ctx;
-    ctx.fillStyle = "#9aa3ad";
-    ctx.fillRect(0, 0, this.width, this.height);
-    if (this.image && this.meta) this.drawImage(ctx);
-    else this.drawGrid(ctx);
-    this.drawPlan(ctx);
-    if (this.goal) this.drawArrow(ctx, this.goal.x, this.goal.y, this.goal.yaw, "#c2185b", 16);
-    this.drawWaypoints(ctx);
-    if (this.drawn && this.robot) {
-      const colour = this.robotStale() ? "#757575" : "#ff6d00";
-      this.drawArrow(ctx, this.drawn.x, this.drawn.y, this.drawn.yaw, colour, 20);
-    }
-    this.drawDrag(ctx);
-  }
+  draw() { drawMap(this); }
 
   imageRect() {
     const m = this.meta, r = m.resolution;
     const [left, top] = this.toScreen(m.originX, m.originY + m.height * r);
     return [left, top, m.width * r * this.view.scale, m.height * r * this.view.scale];
-  }
-
-  drawImage(ctx) {
-    ctx.imageSmoothingEnabled = this.view.scale * this.meta.resolution < 2;
-    const [l, t, w, h] = this.imageRect();
-    ctx.drawImage(this.image, l, t, w, h);
-  }
-
-  drawGrid(ctx) {
-    ctx.fillStyle = "#eceff1";
-    ctx.fillRect(0, 0, this.width, this.height);
-    ctx.strokeStyle = "#cfd8dc";
-    ctx.lineWidth = 1;
-    const [x0, y1] = this.toWorld(0, 0), [x1, y0] = this.toWorld(this.width, this.height);
-    const step = this.view.scale < 10 ? 5 : 1;
-    ctx.beginPath();
-    for (let x = Math.ceil(x0 / step) * step; x <= x1; x += step) {
-      const s = this.toScreen(x, 0)[0]; ctx.moveTo(s, 0); ctx.lineTo(s, this.height);
-    }
-    for (let y = Math.ceil(y0 / step) * step; y <= y1; y += step) {
-      const s = this.toScreen(0, y)[1]; ctx.moveTo(0, s); ctx.lineTo(this.width, s);
-    }
-    ctx.stroke();
-  }
-
-  drawPlan(ctx) {
-    if (this.plan.length < 2) return;
-    ctx.strokeStyle = "#0050c8";
-    ctx.lineWidth = 3;
-    ctx.lineJoin = "round";
-    ctx.beginPath();
-    this.plan.forEach(([x, y], i) => { const [sx, sy] = this.toScreen(x, y); i ? ctx.lineTo(sx, sy) : ctx.moveTo(sx, sy); });
-    ctx.stroke();
-  }
-
-  drawWaypoints(ctx) {
-    ctx.font = "bold 14px system-ui, sans-serif";
-    ctx.textAlign = "center";
-    for (const w of this.waypoints) {
-      const [sx, sy] = this.toScreen(w.x, w.y);
-      ctx.fillStyle = "#00695c";
-      ctx.strokeStyle = "#fff";
-      ctx.lineWidth = 2;
-      ctx.beginPath(); ctx.arc(sx, sy, 7, 0, 2 * Math.PI); ctx.fill(); ctx.stroke();
-      ctx.lineWidth = 4;
-      ctx.strokeText(w.name, sx, sy - 12);
-      ctx.fillStyle = "#002b26";
-      ctx.fillText(w.name, sx, sy - 12);
-    }
-  }
-
-  drawArrow(ctx, x, y, yaw, colour, size) {
-    const [sx, sy] = this.toScreen(x, y);
-    ctx.save();
-    ctx.translate(sx, sy);
-    ctx.rotate(-yaw);
-    ctx.beginPath();
-    ctx.moveTo(size, 0); ctx.lineTo(-size * 0.6, size * 0.6); ctx.lineTo(-size * 0.3, 0); ctx.lineTo(-size * 0.6, -size * 0.6);
-    ctx.closePath();
-    ctx.fillStyle = colour; ctx.fill();
-    ctx.lineWidth = 2; ctx.strokeStyle = "#111"; ctx.stroke();
-    ctx.restore();
-  }
-
-  drawDrag(ctx) {
-    const g = this.gesture;
-    if (!g || g.kind !== "press" || this.mode === "look" || distance(g.start, g.now) < TAP_PX) return;
-    const [x, y] = this.toWorld(g.start[0], g.start[1]);
-    const yaw = Math.atan2(-(g.now[1] - g.start[1]), g.now[0] - g.start[0]);
-    this.drawArrow(ctx, x, y, yaw, this.mode === "pose" ? "#2e7d32" : "#c2185b", 24);
   }
 
   /** State for tests and for people reading the DOM: where things are drawn, in CSS pixels. */
