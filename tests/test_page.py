@@ -132,7 +132,12 @@ def test_the_joystick_drives_and_letting_go_stops(sim, page):
     assert (motors["left"], motors["right"]) == (0.0, 0.0)
 
 
-def test_losing_focus_stops_the_joystick(sim, page):
+HIDE_PAGE = ("Object.defineProperty(document, 'hidden', {value: true, configurable: true});"
+             "document.dispatchEvent(new Event('visibilitychange'))")  # the phone locked, another app on top
+
+
+@pytest.mark.parametrize("event", ["window.dispatchEvent(new Event('blur'))", HIDE_PAGE], ids=["blur", "hidden"])
+def test_losing_focus_or_hiding_the_page_stops_the_joystick(sim, page, event):
     at_rest(sim)
     log = RequestLog(page)
     x, y = centre(page, "#pad")
@@ -140,13 +145,56 @@ def test_losing_focus_stops_the_joystick(sim, page):
     finger.move((x + 50, y))  # turn right
     wait_for(lambda: sim.status()["motors"]["left"] > 0 > sim.status()["motors"]["right"], timeout=10,
              message="the joystick to turn the robot")
-    page.evaluate("window.dispatchEvent(new Event('blur'))")  # e.g. a call comes in
-    wait_for(lambda: log.calls("POST", "/stop"), timeout=5, message="a stop sent when the page lost focus")
+    page.evaluate(event)
+    wait_for(lambda: log.calls("POST", "/stop"), timeout=5, message="a stop sent at once")
     teleops = len(log.calls("POST", "/teleop"))
     page.wait_for_timeout(500)
-    assert len(log.calls("POST", "/teleop")) == teleops, "no command after the page lost focus"
+    assert len(log.calls("POST", "/teleop")) == teleops, "no command after that, the finger still down"
     assert sim.status()["motors"]["left"] == 0.0
     finger.lift()
+
+
+def test_pinch_zooms_and_follow_keeps_the_robot_in_the_middle(sim, page):
+    at_rest(sim)
+    scale = float(page.get_attribute("#map", "data-view").split(",")[0])
+    box = canvas_box(page)
+    cx, cy = box["x"] + box["width"] / 2, box["y"] + box["height"] / 2
+    session = page.context.new_cdp_session(page)
+
+    def fingers(kind, spread):
+        points = [{"x": cx - spread, "y": cy, "id": 1}, {"x": cx + spread, "y": cy, "id": 2}]
+        session.send("Input.dispatchTouchEvent", {"type": kind, "touchPoints": points})
+    fingers("touchStart", 30)
+    for spread in (45, 60, 75, 90):
+        fingers("touchMove", spread)
+    session.send("Input.dispatchTouchEvent", {"type": "touchEnd", "touchPoints": []})
+    zoomed = float(page.get_attribute("#map", "data-view").split(",")[0])
+    assert zoomed > scale * 2, (scale, zoomed)
+    assert sim.status()["navigation"]["state"] != "active", "a pinch is not a goal"
+
+    page.locator("#follow").tap()
+    sim.post("/goto", {"name": "kitchen"})
+    page.wait_for_function("document.getElementById('nav').dataset.state === 'active'", timeout=10000)
+    page.wait_for_timeout(1500)
+    x, y, width, height = page.evaluate("""() => {  // one moment: the status line's wrapping resizes the map
+      const c = document.getElementById('map'), r = c.getBoundingClientRect();
+      return c.dataset.robotPx.split(',').map(Number).concat([r.width, r.height]);
+    }""")
+    assert abs(x - width / 2) < 3 and abs(y - height / 2) < 3, (x, y, width, height)
+    assert page.get_attribute("#follow", "aria-pressed") == "true"
+    sim.post("/stop")
+    page.locator("#fit").tap()
+
+
+def test_a_waypoint_added_elsewhere_appears_without_a_reload(sim, page):
+    r = sim.get("/waypoints")
+    assert r.status_code == 200
+    put = __import__("requests").put(sim.url + "/waypoints/from a script", json={"x": 1.5, "y": 0.5, "yaw": 0.0},
+                                     timeout=10)
+    assert put.status_code == 201, put.text
+    page.wait_for_selector('#places li[data-name="from a script"]', state="attached", timeout=10000)
+    __import__("requests").delete(sim.url + "/waypoints/from a script", timeout=10)
+    page.wait_for_selector('#places li[data-name="from a script"]', state="detached", timeout=10000)
 
 
 def test_tapping_a_waypoint_in_the_list_sends_the_robot_there(sim, page):
