@@ -78,6 +78,9 @@ class Browser:
     """One headless chromium for a test module; ``open(url)`` gives a fresh phone (or desktop) page."""
 
     def __init__(self):
+        if not os.path.exists(CHROMIUM):
+            raise AssertionError("no {}: the browser tests drive Debian's chromium (make setup installs it: "
+                                 "apt-get install chromium)".format(CHROMIUM))
         self._playwright = sync_playwright().start()
         self.browser = self._playwright.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS, headless=True)
         self.contexts = []

@@ -217,6 +217,15 @@ def test_tapping_a_waypoint_marker_on_the_map_sends_the_robot_there(sim, page):
     wait_for(lambda: sim.status()["navigation"]["state"] == "succeeded", timeout=60, message="arrival at the dock")
 
 
+def test_a_tap_on_the_floor_does_not_move_the_robot(sim, page):
+    at_rest(sim)
+    log = RequestLog(page)
+    screen = Screen(page, sim)
+    page.touchscreen.tap(*on_page(page, screen.screen(2.0, 0.5)))  # no waypoint there
+    page.wait_for_function("document.getElementById('hint').textContent.startsWith('Press and drag')")
+    assert log.calls("POST", "/goto") == []
+
+
 def test_press_and_drag_sends_a_goal_with_its_heading(sim, page):
     at_rest(sim)
     screen = Screen(page, sim)
@@ -293,6 +302,11 @@ def test_the_e_stop_latches_shows_and_is_released(sim, page):
     page.wait_for_selector("#estop-banner", state="visible")
     assert sim.status()["estop"]["latched"] is True
     assert sim.post("/teleop", {"linear": 0.1, "angular": 0}).status_code == 409
+    page.locator("#tabs button[data-tab=places]").tap()
+    page.locator("#places li[data-name=kitchen] button.go").tap()  # refused: the page says why, in the robot's words
+    refused = sim.post("/goto", {"name": "kitchen"}).json()["message"]
+    page.wait_for_function("(m) => document.getElementById('error').textContent === m", arg=refused, timeout=5000)
+    page.locator("#tabs button[data-tab=drive]").tap()
     screenshot(page, "phone-estop")
     page.answers.append(True)
     page.locator("#estop-release").tap()

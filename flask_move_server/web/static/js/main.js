@@ -138,6 +138,18 @@ map.onPress = (mode, x, y, yaw) => {
   else if (mode === "mark") markPlace(pose.x, pose.y, pose.yaw).then(() => setGesture("go"));
 };
 const round = (v) => Math.round(v * 1000) / 1000;
+map.onTap = (mode) => {
+  if (mode === "look") return;
+  const what = {go: "send the robot there", pose: "say where the robot is", mark: "mark a place"}[mode];
+  flashHint("Press and drag to " + what + ": the drag sets the heading.");
+};
+
+let hintTimer = null;
+function flashHint(text) {
+  $("hint").textContent = text;
+  clearTimeout(hintTimer);
+  hintTimer = setTimeout(() => { $("hint").textContent = HINTS[map.mode] || ""; }, 3000);
+}
 
 const HINTS = {
   go: "",

@@ -32,6 +32,7 @@ export class MapView {
     this.gesture = null;
     this.onPress = () => {};     // (mode, x, y, yaw) from a drag or a tap on the map
     this.onWaypoint = () => {};  // (name) from a tapped marker
+    this.onTap = () => {};       // (mode) a tap on no marker
     this.listen();
     new ResizeObserver(() => this.resize()).observe(canvas);
     this.resize();
@@ -204,14 +205,12 @@ export class MapView {
     this.onPress(this.mode, x, y, yaw);
   }
 
+  /** A tap picks a waypoint in Go mode; anywhere else it only says how to send the robot (a stray
+   *  touch while looking at the map must not move a robot). */
   tap(point) {
     const hit = this.waypointAt(point);
     if (hit && this.mode === "go") { this.onWaypoint(hit.name); return; }
-    const [x, y] = this.toWorld(point[0], point[1]);
-    const r = this.robot;
-    const yaw = r && this.mode === "go" && Math.hypot(x - r.x, y - r.y) > 0.05 ? Math.atan2(y - r.y, x - r.x)
-      : (r ? r.yaw : 0);
-    this.onPress(this.mode, x, y, yaw);
+    this.onTap(this.mode);
   }
 
   waypointAt(point) {
