@@ -62,7 +62,8 @@ DEMO_WAYPOINTS ?= build/demo/waypoints.yaml
 demo: setup
 	@mkdir -p $(dir $(DEMO_WAYPOINTS))
 	@test -f $(DEMO_WAYPOINTS) || cp config/waypoints.demo.yaml $(DEMO_WAYPOINTS)
-	@echo "Simulated robot on $(DEMO_URL) (Ctrl-C stops it). In another terminal, try:"
+	@echo "Simulated robot on $(DEMO_URL) (Ctrl-C stops it). Open $(DEMO_URL)/ in a browser for the phone page."
+	@echo "In another terminal, try:"
 	@echo "  curl $(DEMO_URL)/waypoints"
 	@echo "  curl -d '{\"name\": \"kitchen\"}' $(DEMO_URL)/goto"
 	@echo "  watch -n 0.5 curl -s $(DEMO_URL)/status"
