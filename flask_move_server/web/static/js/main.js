@@ -244,6 +244,7 @@ for (const tab of document.querySelectorAll("#tabs button")) {
     }
   };
 }
+$("mode").onclick = () => flashHint($("mode").title || "");  // a phone has no hover: tap the mode for its message
 $("token").onclick = () => askTokenAgain().then(() => resync());
 initPanels({call, report, setGesture, isLive});
 setGesture("go");
