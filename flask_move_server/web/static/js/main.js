@@ -25,7 +25,8 @@ function showNavigation(nav) {
   const box = $("nav"), state = nav.state;
   const where = nav.target || (nav.goal ? "x " + nav.goal.x.toFixed(1) + ", y " + nav.goal.y.toFixed(1) : "the goal");
   let text = "idle";
-  if (state === "active" || state === "pending" || state === "canceling") {
+  if (state === "canceling") text = "stopping…";
+  else if (state === "active" || state === "pending") {
     text = "on its way to " + where + (nav.distance_remaining != null ? " – " + nav.distance_remaining.toFixed(1) + " m" : "");
   } else if (state === "succeeded") text = "arrived at " + where;
   else if (state === "aborted" || state === "rejected") text = "failed: " + (nav.message || "move_base gave up on " + where);
@@ -58,7 +59,9 @@ function showEstop(estop) {
 
 let mapLoads = 0;  // only the newest of overlapping loads may draw (map events can come quickly while mapping)
 
-async function loadMap() {
+/** Reads /map, then its image; the image must be of the version the metadata describes (its
+ *  ETag ends in "-<version>"), else the map grew in between and both are read again. */
+async function loadMap(tries = 3) {
   const mine = ++mapLoads;
   let meta;
   try { meta = await api("GET", "/map"); } catch (e) {
@@ -71,9 +74,11 @@ async function loadMap() {
   const response = await authorisedFetch("/map/image", {headers});
   if (response.status === 304) { $("map-note").textContent = ""; return; }
   if (!response.ok) { $("map-note").textContent = "the map image did not load"; return; }
+  const etag = response.headers.get("ETag") || "";
+  if (!etag.replace(/"/g, "").endsWith("-" + meta.version) && tries > 1) return loadMap(tries - 1);
   const image = await createImageBitmap(await response.blob());
   if (mine !== mapLoads) return;
-  mapEtag = response.headers.get("ETag");
+  mapEtag = etag;
   mapVersion = meta.version;
   map.setMap(meta, image);
   $("map-note").textContent = "";
