@@ -405,3 +405,20 @@ def test_without_a_stream_the_page_polls_and_still_follows_the_robot(sim, browse
     assert page.get_attribute("#map", "data-robot-stale") == "0"
     sim.post("/stop")
     page.close()
+
+
+def test_the_event_parser_reads_events_however_the_bytes_are_cut(page):
+    """The page's own SSE parser (live.js) on a stream cut mid-line, mid-CRLF, with comments and retry."""
+    events = page.evaluate("""async () => {
+      const {SseParser} = await import('/static/js/live.js');
+      const got = [];
+      const parser = new SseParser((type, data) => got.push([type, data]));
+      const stream = 'retry: 2000\\n\\nevent: pose\\ndata: {"x": 1}\\n\\n: heartbeat\\n\\n' +
+                     'event: mode\\r\\ndata: {"mode":\\r\\ndata: "idle"}\\r\\n\\r\\ndata: plain\\n\\n';
+      for (const cut of [1, 2, 3, 5, 7, 11]) {
+        for (let i = 0; i < stream.length; i += cut) parser.feed(stream.slice(i, i + cut));
+      }
+      return got;
+    }""")
+    once = [["pose", '{"x": 1}'], ["mode", '{"mode":\n"idle"}'], ["message", "plain"]]
+    assert events == once * 6

@@ -21,6 +21,8 @@ export class SseParser {
   }
 
   feed(text) {
+    if (this.lastWasCR && text.startsWith("\n")) text = text.slice(1);  // a CRLF split between chunks
+    this.lastWasCR = text.endsWith("\r");
     this.buffer += text;
     const lines = this.buffer.split(/\r\n|\r|\n/);
     this.buffer = lines.pop();  // an unfinished line waits for the next chunk
