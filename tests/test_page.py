@@ -343,6 +343,22 @@ def test_wide_screens_show_map_and_panel_side_by_side(sim, browser, device, name
     page.close()
 
 
+SMALL_PHONE = dict(PHONE, viewport={"width": 360, "height": 640})
+
+
+def test_a_small_phone_keeps_every_control_reachable(sim, browser):
+    page = browser.open(sim.url + "/", device=SMALL_PHONE)
+    live(page)
+    page.wait_for_function("document.getElementById('map').dataset.imageRect")
+    for control in ("#stop", "#pad", "#estop", "#fit", "#follow", "#mode", "#conn",
+                    "#gesture button[data-gesture=go]", "#gesture button[data-gesture=look]"):
+        assert uncovered(page, control), control + " is hidden or covered"
+    assert canvas_box(page)["height"] >= 150, "room for the map"
+    font = page.evaluate("parseFloat(getComputedStyle(document.querySelector('#places')).fontSize)")
+    assert font >= 16, "text readable at arm's length"
+    page.close()
+
+
 def test_set_pose_mode_moves_the_robots_pose(sim, page):
     at_rest(sim)
     page.locator("#gesture button[data-gesture=pose]").tap()
