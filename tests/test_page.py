@@ -136,7 +136,8 @@ HIDE_PAGE = ("Object.defineProperty(document, 'hidden', {value: true, configurab
              "document.dispatchEvent(new Event('visibilitychange'))")  # the phone locked, another app on top
 
 
-@pytest.mark.parametrize("event", ["window.dispatchEvent(new Event('blur'))", HIDE_PAGE], ids=["blur", "hidden"])
+@pytest.mark.parametrize("event", ["window.dispatchEvent(new Event('blur'))", HIDE_PAGE, "touchcancel"],
+                         ids=["blur", "hidden", "pointercancel"])
 def test_losing_focus_or_hiding_the_page_stops_the_joystick(sim, page, event):
     at_rest(sim)
     log = RequestLog(page)
@@ -145,13 +146,17 @@ def test_losing_focus_or_hiding_the_page_stops_the_joystick(sim, page, event):
     finger.move((x + 50, y))  # turn right
     wait_for(lambda: sim.status()["motors"]["left"] > 0 > sim.status()["motors"]["right"], timeout=10,
              message="the joystick to turn the robot")
-    page.evaluate(event)
+    if event == "touchcancel":  # the browser takes the touch over (a system gesture): pointercancel
+        finger.session.send("Input.dispatchTouchEvent", {"type": "touchCancel", "touchPoints": []})
+    else:
+        page.evaluate(event)
     wait_for(lambda: log.calls("POST", "/stop"), timeout=5, message="a stop sent at once")
     teleops = len(log.calls("POST", "/teleop"))
     page.wait_for_timeout(500)
     assert len(log.calls("POST", "/teleop")) == teleops, "no command after that, the finger still down"
     assert sim.status()["motors"]["left"] == 0.0
-    finger.lift()
+    if event != "touchcancel":
+        finger.lift()
 
 
 def test_pinch_zooms_and_follow_keeps_the_robot_in_the_middle(sim, page):
@@ -245,13 +250,14 @@ def test_press_and_drag_sends_a_goal_with_its_heading(sim, page):
     assert math.hypot(pose["x"] - goal["x"], pose["y"] - goal["y"]) < 0.15
 
 
-def test_stop_cancels_the_goal(sim, page):
+@pytest.mark.parametrize("button", ["#stop", "#cancel"])
+def test_stop_and_cancel_end_the_goal(sim, page, button):
     at_rest(sim)
     page.locator("#tabs button[data-tab=places]").tap()
     page.locator("#places li[data-name=kitchen] button.go").tap()
     page.wait_for_function("document.getElementById('nav').dataset.state === 'active'", timeout=10000)
     assert "on its way to kitchen" in page.inner_text("#nav-text")
-    page.locator("#stop").tap()
+    page.locator(button).tap()
     wait_for(lambda: sim.status()["navigation"]["state"] == "canceled", timeout=10, message="the goal canceled")
     page.wait_for_function("document.getElementById('nav').dataset.state === 'canceled'", timeout=5000)
 
