@@ -52,7 +52,8 @@ function showStatus(status) {
 function showEstop(estop) {
   $("estop-banner").hidden = !estop.latched;
   document.body.dataset.estop = estop.latched ? "1" : "0";
-  $("estop-why").textContent = estop.latched && estop.source ? "(" + estop.source + ")" : "";
+  const by = {api: "from a page or robotctl", button: "by the e-stop button"}[estop.source] || estop.source;
+  $("estop-why").textContent = estop.latched && by ? by : "";
 }
 
 // ---- the map, the waypoints ------------------------------------------------------------
