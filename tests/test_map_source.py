@@ -161,3 +161,27 @@ def test_the_map_is_forgotten_when_its_stack_stops_and_waiters_get_the_next(live
     pub.publish(occupancy_grid(value=100))
     version, grid = source.fresh_after(version, 5)
     assert version == 2 and grid.value(1, 1) == 100
+
+
+def test_a_typed_subscriber_on_the_map_topic_first_does_not_blind_the_source(ros_node, unique_name):
+    # rospy shares one subscription per topic and process, with the class of the first subscriber
+    import rospy
+    from nav_msgs.msg import OccupancyGrid
+
+    from flask_move_server.ros.map_source import MapSource
+
+    topic = unique_name + "/map"
+    typed = []
+    first = rospy.Subscriber(topic, OccupancyGrid, typed.append)
+    source = MapSource(ros_node, topic)
+    pub = rospy.Publisher(topic, OccupancyGrid, queue_size=1, latch=True)
+    try:
+        pub.publish(occupancy_grid(value=100))
+        version, grid = source.latest(10)
+        assert version == 1 and grid.value(1, 1) == 100 and grid.resolution == 0.05
+        wait_for(lambda: typed, message="the typed subscriber's message")
+        assert isinstance(typed[0], OccupancyGrid)
+    finally:
+        pub.unregister()
+        first.unregister()
+        source.close()

@@ -209,6 +209,16 @@ def test_rename_moves_the_waypoints_and_delete_removes_everything(client, catalo
     assert error_of(r) == (404, "unknown_map")
 
 
+def test_a_rename_to_a_bad_or_taken_name_is_refused_and_changes_nothing(client, catalogue):
+    client.post("/maps", json={"name": "flat"})
+    client.post("/maps", json={"name": "garage"})
+    assert error_of(client.patch("/maps/flat", json={"name": ".hidden"})) == (400, "bad_map_name")
+    assert error_of(client.patch("/maps/flat", json={"name": "garage"})) == (409, "map_exists")
+    assert error_of(client.patch("/maps/flat", json={})) == (400, "bad_request")
+    assert files_in(catalogue.folder) == ["flat.pgm", "flat.waypoints.yaml", "flat.yaml", "garage.pgm",
+                                          "garage.yaml"]
+
+
 def test_unknown_maps_are_404_with_close_names(client):
     client.post("/maps", json={"name": "flat"})
     r = client.get("/maps/flta")

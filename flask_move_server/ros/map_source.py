@@ -14,6 +14,7 @@ forgotten when the mode's stack stops (a ``mode`` event in state
 meanwhile ``GET /map`` says no map is published rather than show the old one.
 """
 
+import io
 import logging
 import threading
 import time
@@ -67,10 +68,11 @@ class MapSource:
                 log.warning("ignoring %s on %s: a map is a %s", kind, self.topic, MAP_TYPE)
                 self._wrong_type = kind
             return
+        raw = _raw_bytes(msg)
         with self._cond:
             if self._closed:
                 return
-            self._raw = msg._buff
+            self._raw = raw
             self._version += 1
             self._cond.notify_all()
         self._announce()
@@ -183,3 +185,15 @@ class MapSource:
             timer.cancel()
         if self._sub is not None:
             self._sub.unregister()
+
+
+def _raw_bytes(msg):
+    """The message's serialized bytes. rospy shares one subscription per topic and process, typed by
+    the first subscriber: if another part subscribed to the map topic with ``OccupancyGrid`` first,
+    a decoded message comes here, and is serialized back (slow, but right)."""
+    raw = getattr(msg, "_buff", None)
+    if raw is not None:
+        return raw
+    buff = io.BytesIO()
+    msg.serialize(buff)
+    return buff.getvalue()

@@ -122,14 +122,7 @@ def _waypoint_item():
 
 def _maps():
     """``/map``, ``/map/image``, ``/maps`` and ``/maps/{name}`` (docs/api.md, "Maps")."""
-    name = {"name": "name", "in": "path", "required": True, "schema": _name(),
-            "description": "a map's name: " + MAP_NAME_RULE}
-    info = _object({"name": {"type": "string"}, "width": {"type": "integer", "nullable": True},
-                    "height": {"type": "integer", "nullable": True},
-                    "resolution": {"type": "number", "nullable": True},
-                    "origin": {"type": "array", "items": {"type": "number"}, "nullable": True},
-                    "modified": {"type": "string"}, "waypoints": {"type": "integer"},
-                    "active": {"type": "boolean"}, "problem": {"type": "string"}})
+    info = _map_info()
     live = _object({"version": {"type": "integer"}, "resolution": {"type": "number"},
                     "origin": {"type": "array", "items": {"type": "number"}}, "width": {"type": "integer"},
                     "height": {"type": "integer"}, "empty": {"type": "boolean"},
@@ -138,6 +131,31 @@ def _maps():
                     "then": {"enum": ["navigation"]}}, ["name"])
     saved = _json(_object({"status": {"enum": ["ok"]}, "map": info, "adopted_waypoints": {"type": "boolean"},
                            "mode": {"type": "object"}, "mode_error": {"type": "object"}}), "saved")
+    listed = _object({"maps": {"type": "array", "items": info}, "active": {"type": "string", "nullable": True}})
+    return {
+        "/map": {"get": _operation("The map in use now: version, and the crop /map/image serves", None,
+                                   {200: _json(live)}, errors=(404,))},
+        "/map/image": {"get": _operation("The map in use now as a PNG (ETag; If-None-Match answers 304)", None,
+                                         _PNG, errors=(404,))},
+        "/maps": {"get": _operation("The saved maps, and the one in use", None, {200: _json(listed)}),
+                  "post": _operation("Save the map being made (mapping mode only)", save, {201: saved},
+                                     errors=(409, 503))},
+        "/maps/{name}": _map_item(info),
+        "/maps/{name}/image": {"get": _with_map_name(_operation(
+            "A saved map's image, cropped to what is known", None, _PNG, errors=(400, 404, 503)))},
+    }
+
+
+def _map_info():
+    return _object({"name": {"type": "string"}, "width": {"type": "integer", "nullable": True},
+                    "height": {"type": "integer", "nullable": True},
+                    "resolution": {"type": "number", "nullable": True},
+                    "origin": {"type": "array", "items": {"type": "number"}, "nullable": True},
+                    "modified": {"type": "string"}, "waypoints": {"type": "integer"},
+                    "active": {"type": "boolean"}, "problem": {"type": "string"}})
+
+
+def _map_item(info):
     item = {
         "get": _operation("One saved map", None, {200: _json(info)}, errors=(400, 404, 503)),
         "delete": _operation("Delete a saved map, its image and waypoints (not the one in use)", None,
@@ -146,21 +164,13 @@ def _maps():
                             _object({"name": _name("the new name")}, ["name"]),
                             {200: _ok({"map": info})}, errors=(404, 409, 503)),
     }
-    image = _operation("A saved map's image, cropped to what is known", None, _PNG, errors=(400, 404, 503))
-    for operation in list(item.values()) + [image]:
-        operation["parameters"] = [name]
-    return {
-        "/map": {"get": _operation("The map in use now: version, and the crop /map/image serves", None,
-                                   {200: _json(live)}, errors=(404,))},
-        "/map/image": {"get": _operation("The map in use now as a PNG (ETag; If-None-Match answers 304)", None,
-                                         _PNG, errors=(404,))},
-        "/maps": {"get": _operation("The saved maps, and the one in use", None, {200: _json(_object(
-                      {"maps": {"type": "array", "items": info}, "active": {"type": "string", "nullable": True}}))}),
-                  "post": _operation("Save the map being made (mapping mode only)", save, {201: saved},
-                                     errors=(409, 503))},
-        "/maps/{name}": item,
-        "/maps/{name}/image": {"get": image},
-    }
+    return {method: _with_map_name(operation) for method, operation in item.items()}
+
+
+def _with_map_name(operation):
+    operation["parameters"] = [{"name": "name", "in": "path", "required": True, "schema": _name(),
+                                "description": "a map's name: " + MAP_NAME_RULE}]
+    return operation
 
 
 _PNG = {200: {"description": "a greyscale PNG, ETag = the map's version",
