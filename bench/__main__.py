@@ -24,6 +24,7 @@ BENCHMARKS = [
     ("abuse", "bench_abuse.py", ["--connections", "100", "--rounds", "10", "--signals", "2",
                                  "--storm-seconds", "4"]),
     ("page", "bench_page.py", ["--loads", "3"]),
+    ("events", "bench_events.py", ["--rest-seconds", "3", "--drive-seconds", "5", "--stops", "3"]),
 ]
 
 

@@ -91,6 +91,8 @@ class RobotTask(WSGITask):
         if self._streaming is None:
             self._streaming = any(name.lower() == "content-type" and value.startswith(STREAM_TYPE)
                                   for name, value in self.response_headers)
+            if self._streaming:
+                self.channel.give_up_unacknowledged_after(self.channel.adj.channel_timeout)
         if self._streaming:
             self.channel.wait_for_backlog(STREAM_BACKLOG)
         super().write(data)  # sent from this thread at once (waitress 2's send_bytes is 1)
@@ -113,6 +115,21 @@ class RobotChannel(HTTPChannel):
             return False
         except (OSError, AttributeError):  # reset, or closed by the loop meanwhile
             return True
+
+    def give_up_unacknowledged_after(self, seconds):
+        """Let the kernel drop this connection when what it sent is unacknowledged for ``seconds``.
+
+        A phone that left the Wi-Fi never answers; without this its stream would keep a thread
+        until TCP's retransmissions give up (~15 minutes), as the heartbeats only fill the socket's
+        buffer. Linux (TCP_USER_TIMEOUT); elsewhere the backlog rule of :meth:`wait_for_backlog`.
+        """
+        option = getattr(socket, "TCP_USER_TIMEOUT", None)
+        if option is None:
+            return
+        try:
+            self.socket.setsockopt(socket.IPPROTO_TCP, option, int(seconds * 1000))
+        except (OSError, AttributeError):
+            pass  # closed meanwhile: nothing left to time out
 
     def wait_for_backlog(self, limit):
         """Block the writing thread while more than ``limit`` bytes wait unsent.

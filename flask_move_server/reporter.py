@@ -43,12 +43,13 @@ class Reporter:
         self._clock = clock
         self._last = {"pose": None, "status": None, "estop": None}
         self._pose_told_at = None
-        self._lock = threading.Lock()  # one sample at a time (the thread, and the e-stop callback)
+        self._lock = threading.Lock()  # one sample at a time
+        self._estop_lock = threading.Lock()  # the e-stop read and told in one step (thread and callback)
         self._stop = threading.Event()
         self._thread = None
         estop = getattr(robot, "estop", None)
         if estop is not None:
-            estop.when_engaged(lambda source: self._tell_estop(robot.estop_status()))
+            estop.when_engaged(lambda source: self._tell_estop())
 
     def start(self):
         """Start sampling (a daemon thread); returns self."""
@@ -58,11 +59,18 @@ class Reporter:
         return self
 
     def _run(self):
+        failing = False
         while not self._stop.wait(self._period):
             try:
                 self.sample()
-            except Exception:  # a part's bug must not end the page's live view
-                log.exception("sampling the robot for events failed")
+            except Exception:  # a part's bug must not end the page's live view, nor flood the log
+                if not failing:
+                    log.exception("sampling the robot for events failed (logged once until it works again)")
+                failing = True
+            else:
+                if failing:
+                    log.info("sampling the robot for events works again")
+                failing = False
 
     def sample(self):
         """Read the robot once and publish what changed since the last sample."""
@@ -70,7 +78,7 @@ class Reporter:
         with self._lock:
             self._tell_pose(status.get("pose"))
             self._tell_status({part: status.get(part) for part in STATUS_PARTS})
-        self._tell_estop(status.get("estop"))
+        self._tell_estop()
 
     def _tell_pose(self, pose):
         now = self._clock()
@@ -87,12 +95,14 @@ class Reporter:
             self._last["status"] = key
             self._events.publish("status", status)
 
-    def _tell_estop(self, estop):
-        with self._lock:
-            if estop == self._last["estop"]:
-                return
-            self._last["estop"] = estop
-        self._events.publish("estop", estop)
+    def _tell_estop(self):
+        """Read the latch and tell it if it changed, as one step: a sample's older reading can never
+        be told after the engage callback's newer one (a page would see 'released' for a moment)."""
+        with self._estop_lock:
+            estop = self._robot.estop_status()
+            if estop != self._last["estop"]:
+                self._last["estop"] = estop
+                self._events.publish("estop", estop)
 
     def close(self):
         """Stop sampling. Idempotent."""

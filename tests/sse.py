@@ -40,14 +40,15 @@ class EventReader:
                 return None
             self._buffer += chunk.decode("utf-8")
 
-    def until(self, predicate, limit=10000):
-        """Read events until ``predicate(kind, data)``; that event, or AssertionError."""
-        for _ in range(limit):
+    def until(self, predicate, timeout=30):
+        """Read events until ``predicate(kind, data)``; that event, or AssertionError after ``timeout`` s."""
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
             event = self.next()
             assert event is not None, "the stream ended before the event awaited"
             if predicate(*event):
                 return event
-        raise AssertionError("no such event in {} events".format(limit))
+        raise AssertionError("no such event within {} s".format(timeout))
 
     def _parse(self, block):
         kind, data = "message", []

@@ -131,3 +131,26 @@ def test_streams_end_when_the_event_bus_closes(robot_config, store, bus):
         assert reader.next() is None and reader.ended
         late = EventReader(url)  # one opened meanwhile ends at once too
         assert late.next() is None and late.ended
+
+
+def test_a_stream_is_dropped_by_the_kernel_when_its_peer_stops_acknowledging(robot_config, store, bus):
+    """A phone that walks out of Wi-Fi range never answers: its stream's connection times out in
+    ``channel_timeout`` (TCP_USER_TIMEOUT) instead of TCP's ~15 minutes, freeing its place."""
+    robot_config.server.channel_timeout = 12.0
+    bus.publish("mode", {"mode": "idle"})
+    with _serve(robot_config, store, bus) as (server, url), EventReader(url) as reader:
+        reader.next()
+        streams = [channel for channel in list(server._map.values()) if getattr(channel, "requests", None)]
+        assert len(streams) == 1
+        timeout = streams[0].socket.getsockopt(socket.IPPROTO_TCP, socket.TCP_USER_TIMEOUT)
+        assert timeout == 12000
+
+
+def test_a_page_knows_it_is_connected_at_once_even_when_nothing_has_happened_yet(robot_config, store, bus):
+    """The answer's headers come with a first chunk written at once, not with the first event (or
+    the first heartbeat, 15 s later: past the reader's 10 s timeout)."""
+    with _serve(robot_config, store, bus) as (_, url), EventReader(url) as reader:
+        assert reader.status_code == 200
+        bus.publish("waypoints", {"map": None, "version": 1})
+        assert reader.next() == ("waypoints", {"map": None, "version": 1})
+        assert reader.retry == 2000

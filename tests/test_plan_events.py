@@ -8,9 +8,10 @@ from flask_move_server.events import EventBus
 from flask_move_server.ros.plan import MAX_POINTS, PlanRelay
 
 
-def _path(frame, count):
+def _path(frame, count, age=0.0):
     msg = Path()
     msg.header.frame_id = frame
+    msg.header.stamp = rospy.Time.from_sec(rospy.get_time() - age)
     for i in range(count):
         pose = PoseStamped()
         pose.header.frame_id = frame
@@ -41,4 +42,22 @@ def test_a_plan_is_told_thinned_and_cleared_when_the_goal_ends(ros_node, unique_
     finally:
         publisher.unregister()
         relay.close()
+        relay.close()
+
+
+def test_a_latched_plan_of_a_goal_that_ended_is_not_drawn(ros_node, unique_name):
+    bus = EventBus()
+    bus.publish("status", {"navigation": {"state": "succeeded"}})
+    sub = bus.subscribe(["plan"])
+    topic = unique_name + "/plan"
+    publisher = rospy.Publisher(topic, Path, queue_size=1, latch=True)
+    publisher.publish(_path("map", 10, age=30.0))  # published long ago, latched
+    relay = PlanRelay(topic, bus, ros_node)
+    try:
+        assert sub.next(1.0) is None
+        publisher.publish(_path("map", 10))  # a goal's new plan, before the status says active
+        kind, plan = sub.next(10)
+        assert kind == "plan" and len(plan["poses"]) == 10
+    finally:
+        publisher.unregister()
         relay.close()

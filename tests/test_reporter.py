@@ -134,3 +134,50 @@ def test_a_long_plan_is_thinned_to_the_limit_keeping_both_ends():
     assert len(kept) <= MAX_POINTS and kept[0] == points[0] and kept[-1] == points[-1]
     event = plan_event("map", [(1.23456, 2.0)])
     assert event == {"frame": "map", "poses": [[1.235, 2.0]]}
+
+
+class FailingRobot(MovingRobot):
+    def __init__(self):
+        super().__init__()
+        self.failures = 3
+
+    def status(self):
+        if self.failures:
+            self.failures -= 1
+            raise RuntimeError("a part's bug")
+        return super().status()
+
+
+def test_a_failing_sample_is_logged_once_and_sampling_goes_on(caplog):
+    robot = FailingRobot()
+    bus = EventBus()
+    sub = bus.subscribe()
+    reporter = Reporter(robot, bus, rate=50).start()
+    try:
+        assert sub.next(5) is not None  # told once the robot answers again
+    finally:
+        reporter.close()
+    failures = [r for r in caplog.records if "sampling the robot for events failed" in r.getMessage()]
+    assert len(failures) == 1
+
+
+class EngagedMidSample(MovingRobot):
+    """The e-stop is pressed while the reporter is reading the rest of the robot."""
+
+    press = False
+
+    def status(self):
+        status = super().status()  # read before the press: not latched
+        if self.press:
+            self.engage_estop("button")
+        return status
+
+
+def test_an_estop_pressed_during_a_sample_is_never_told_as_released_afterwards():
+    robot = EngagedMidSample()
+    reporter, sub, clock = _reporter(robot)
+    reporter.sample()
+    robot.press = True
+    clock.now += 0.1
+    reporter.sample()
+    assert reporter._events.latest("estop")["latched"] is True

@@ -5,7 +5,8 @@ default; the sim's stand-in publishes the same) and publishes ``plan`` =
 ``{"frame": "map", "poses": [[x, y], …]}`` on the event bus, thinned to at most
 ``max_points`` points (the first and last always kept) and rounded to the millimetre, so a
 long plan stays a small event. When the goal ends (the ``status`` event's navigation state
-is no longer active or canceling), the plan is cleared: ``{"frame": …, "poses": []}``.
+is no longer active or canceling), the plan is cleared: ``{"frame": …, "poses": []}``. An old
+plan arriving while no goal is under way (a latched topic's leftover) is not told.
 """
 
 import logging
@@ -18,6 +19,7 @@ log = logging.getLogger(__name__)
 
 MAX_POINTS = 500
 UNDER_WAY = ("active", "canceling")
+LEFTOVER_AGE = 2.0  # s: a plan this old on arrival, no goal under way, is a latched one of an ended goal
 
 
 class PlanRelay:
@@ -38,12 +40,19 @@ class PlanRelay:
             self._subscriber = rospy.Subscriber(self._topic, Path, self._on_path, queue_size=1)
 
     def _on_path(self, msg):
-        if self._closed:
+        if self._closed or self._leftover(msg):
             return
         frame = msg.header.frame_id or (msg.poses[0].header.frame_id if msg.poses else "")
         points = [(p.pose.position.x, p.pose.position.y) for p in msg.poses]
         self._shown = bool(points)
         self._events.publish("plan", plan_event(frame, points, self._max_points))
+
+    def _leftover(self, msg):
+        """True for an old plan while no goal is under way: a latched topic's last message, given to
+        this subscriber on (re)connecting; drawn, it would stay until the next goal ended."""
+        stamp = msg.header.stamp.to_sec()
+        navigation = (self._events.latest("status") or {}).get("navigation") or {}
+        return bool(stamp) and navigation.get("state") not in UNDER_WAY and rospy.get_time() - stamp > LEFTOVER_AGE
 
     def _on_status(self, status):
         navigation = (status or {}).get("navigation") or {}

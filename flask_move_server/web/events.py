@@ -28,7 +28,7 @@ from flask_move_server.errors import TooManyStreams
 events_api = Blueprint("events", __name__)
 
 HEARTBEAT = 15.0  # s between comment lines on a quiet stream
-POLL = 1.0  # s: how often a quiet stream looks whether its peer left or the server is stopping
+POLL = 0.5  # s: how often a quiet stream looks whether its peer left or the server is stopping
 PEER_GONE = "flask_move_server.peer_gone"  # WSGI environ key: a callable, True once the client left
 RETRY_MS = 2000  # the reconnection delay the stream suggests to SSE clients
 
@@ -123,4 +123,4 @@ class EventStream:
 
 def format_event(kind, data):
     """One SSE event: ``event: kind`` and ``data: {json}`` (JSON has no newline: one data line)."""
-    return "event: {}\ndata: {}\n\n".format(kind, json.dumps(data, separators=(",", ":")))
+    return "event: {}\ndata: {}\n\n".format(kind, json.dumps(data, separators=(",", ":"), default=str))
