@@ -208,7 +208,8 @@ class Server:
         backend = self._stack_backend()
         if backend is None:
             log.info("modes: the navigation stack is started outside this server (modes.stack: %s)", cfg.modes.stack)
-        modes = ModeManager(cfg, backend, self.events, relocalize=initial_pose.publish)
+        modes = ModeManager(cfg, backend, self.events, relocalize=initial_pose.publish,
+                            goals_ready=lambda: self.robot.health()["move_base"] == "ready")
         stack.callback(modes.close)
         return modes
 

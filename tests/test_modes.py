@@ -289,3 +289,26 @@ def test_close_stops_the_stack_once(harness):
     harness.modes.close()
     harness.modes.close()
     assert harness.stack.calls[-2:] == [("stop",), ("close",)]
+
+
+def test_running_waits_until_goals_reach_the_new_move_base(cfg):
+    answers = iter([False, False, True])
+    modes = ModeManager(cfg, StandInStack(), goals_ready=lambda: next(answers))
+    try:
+        modes.switch("mapping")
+        assert modes.wait(5)
+        assert next(answers, "asked until ready") == "asked until ready"
+        assert "move_base" not in modes.status()["message"]
+    finally:
+        modes.close()
+
+
+def test_a_move_base_that_does_not_answer_is_said_in_the_message(cfg):
+    modes = ModeManager(cfg, StandInStack(), goals_ready=lambda: False)
+    modes.READY_WAIT = 0.1
+    try:
+        modes.switch("mapping")
+        assert modes.wait(5)
+        assert modes.status()["message"].endswith("; move_base does not answer this server's goals yet (GET /health)")
+    finally:
+        modes.close()

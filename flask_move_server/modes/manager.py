@@ -43,11 +43,16 @@ class ModeManager:
     BACKOFF = (1.0, 2.0, 4.0)  # seconds before the 1st, 2nd, 3rd (and later) restart
     STABLE_RUN = 60.0  # seconds of running after which earlier crashes are forgiven
 
-    def __init__(self, config, backend, events=None, relocalize=None, clock=time.monotonic):
+    READY_WAIT = 5.0  # seconds a started stack's move_base may take to answer the server's action client
+    READY_POLL = 0.05
+
+    def __init__(self, config, backend, events=None, relocalize=None, clock=time.monotonic, goals_ready=None):
+        """``relocalize(pose)``: publish a pose estimate; ``goals_ready()``: True once /goto would reach move_base."""
         self._config = config
         self._backend = backend
         self._events = events
         self._relocalize = relocalize
+        self._goals_ready = goals_ready
         self._clock = clock
         self._catalogue = MapCatalogue(config.maps_folder())
         self._changed = threading.Condition()
@@ -175,12 +180,23 @@ class ModeManager:
             if not isinstance(exc, StackFailed):
                 log.exception("the %s stack could not start", target.mode)
             return str(exc) or type(exc).__name__
+        late = self._await_goals()
         if relocalize:
             note = relocalizing.after_start(target, self._waypoints_path, self._publish_pose)
         else:
             note = relocalizing.restarted_note(target, self._restarts)
-        self._running(gen, target, note)
+        self._running(gen, target, note + late)
         return None
+
+    def _await_goals(self):
+        """Wait briefly until goals reach the new move_base, so "running" means /goto works; a note if not."""
+        if self._goals_ready is None:
+            return ""
+        deadline = time.monotonic() + self.READY_WAIT
+        while not self._goals_ready():
+            if time.monotonic() >= deadline or self._closing.wait(self.READY_POLL):
+                return "; move_base does not answer this server's goals yet (GET /health)"
+        return ""
 
     def _running(self, gen, target, message):
         """Remember ``target`` for the next start, then say it runs (a waiter finds it remembered)."""
