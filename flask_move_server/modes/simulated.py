@@ -32,6 +32,8 @@ log = logging.getLogger(__name__)
 
 MODES = ("idle", "mapping", "navigation")
 MAPPING_MARGIN = 1.0  # m of canvas around the true map, so the SLAM map never clips the flat
+CLIENT_WAIT = 2.0  # s: start() waits this long at most for move_base's clients (the navigator) to connect
+MAX_SCAN_RATE = 11.0  # scans integrated per real second at most, however fast the sim runs
 
 
 class SimulatedStack:
@@ -62,6 +64,9 @@ class SimulatedStack:
         if not self._node.wait_connected(timeout):
             raise StackFailed("The simulated {} mode could not start: no ROS master answered at {} within {} s."
                               .format(mode, self._node.master_uri, timeout))
+        if mode != "idle" and not self._move_base.wait_clients(CLIENT_WAIT):
+            log.warning("simulated stack: %s runs, but not every move_base client connected within %s s",
+                        mode, CLIENT_WAIT)
 
     def begin(self, mode, map_yaml=None, on_exit=None):
         """As :meth:`start`, without waiting for the node: the parts set up when it connects."""
@@ -129,7 +134,8 @@ class SimulatedStack:
 
         sim, cfg = self._config.sim, self._config
         self.slam = SlamMap.around(self._world.laser, margin=MAPPING_MARGIN)
-        scan_rate = (sim.scan_rate or 5.5) * sim.speed_factor  # scans per simulated second, as the laser's
+        # The laser's scans per simulated second, but at most MAX_SCAN_RATE real ones (CPU: ~10 ms a scan).
+        scan_rate = min((sim.scan_rate or 5.5) * sim.speed_factor, MAX_SCAN_RATE)
         self._parts.append(SimMapping(self._node, self.slam, self._world, cfg.ros.frames, map_topic=sim.map_topic,
                                       odom_topic=cfg.drive.odom_topic, scan_rate=scan_rate,
                                       publish_period=max(0.25, 1.0 / sim.speed_factor)))

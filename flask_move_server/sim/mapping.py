@@ -11,8 +11,8 @@ rest costs nothing), and publishes the grid latched on ``/map`` (and its
 ``/odom`` message it publishes tf ``map → odom`` = true pose ∘ odometry⁻¹ at
 that stamp: the correction gmapping's scan matching would find, exactly.
 
-Not wired yet: the mode manager (issue 12) starts this in mapping mode, in place of
-the world's AMCL stand-in, which publishes the same tf and must be quiet meanwhile.
+``modes/simulated.py`` runs this in mapping mode, in place of the world's AMCL
+stand-in, which publishes the same tf and is quiet meanwhile (``SimWorld.localizing``).
 """
 
 import logging

@@ -14,7 +14,7 @@ Every plan is published as a ``nav_msgs/Path`` in the map frame on
 swapped (``set_planner``: the known map in navigation mode, the growing SLAM
 map in mapping mode); a planner that can tell when its map grew an obstacle
 across the path (``path_blocked``, the SLAM map's) is asked once a second
-while the robot drives, and the path is planned again if so, as move_base does
+of simulated time while the robot drives, and the path is planned again if so, as move_base does
 on its growing costmap. ``withdraw()`` takes the action server away entirely
 (idle mode: to the server it looks like no move_base at all) and ``serve()``
 brings a new one up.
@@ -38,7 +38,8 @@ from flask_move_server.sim.follower import DONE, PathFollower
 
 log = logging.getLogger(__name__)
 
-REPLAN_CHECK_PERIOD = 1.0  # s of real time between "is the path still free on the grown map?" checks
+REPLAN_CHECK_PERIOD = 1.0  # simulated s between "is the path still free on the grown map?" checks
+MIN_REPLAN_CHECK_PERIOD = 0.25  # real s: a fast sim checks no more often (a costmap rebuild costs 40-70 ms)
 
 
 class MoveBaseStandIn:
@@ -58,7 +59,9 @@ class MoveBaseStandIn:
         self._endpoint = None
         self._cmd_vel = None
         self._closed = threading.Event()
-        self.goals = 0
+        self.goals = 0  # goals taken, goals ended and how the last one ended: (outcome, text)
+        self.ended = 0
+        self.last_outcome = None
         self.plans = 0
         node.when_ready(self._setup)
 
@@ -92,6 +95,26 @@ class MoveBaseStandIn:
             if self._cmd_vel is not None and self._endpoint is None and not self._closed.is_set():
                 self._endpoint = _Endpoint(self.action, self._execute)
 
+    def wait_clients(self, timeout):
+        """Block until every action client the master knows of is connected to the action server.
+
+        ``start()`` of a mode returns once this holds (or ``timeout`` passed), so the server's
+        navigator takes a goal right after the switch instead of answering 503 for ~30 ms.
+        True when connected (or when nobody is a client); False after ``timeout``.
+        """
+        with self._lock:
+            endpoint = self._endpoint
+        if endpoint is None:
+            return False
+        if not endpoint.has_clients():
+            return True
+        deadline = time.monotonic() + timeout
+        while not endpoint.clients_connected():
+            if time.monotonic() > deadline or self._closed.is_set():
+                return False
+            time.sleep(0.005)
+        return True
+
     def withdraw(self):
         """Take the action server away: the goal under way is aborted, then every action topic goes."""
         with self._lock:
@@ -118,6 +141,7 @@ class MoveBaseStandIn:
             follower = self._plan(target)
         except PlanningFailed as exc:
             log.warning("move_base stand-in: aborting the goal: %s", exc)
+            self._ended("aborted", str(exc))
             server.set_aborted(MoveBaseResult(), str(exc))
             return
         try:
@@ -126,12 +150,17 @@ class MoveBaseStandIn:
             outcome, text = "aborted", str(exc)
         self._publish_velocity(0.0, 0.0)
         log.info("move_base stand-in: goal %s (%s)", outcome, text)
+        self._ended(outcome, text)
         if outcome == "succeeded":
             server.set_succeeded(MoveBaseResult(), text)
         elif outcome == "preempted":
             server.set_preempted(MoveBaseResult(), text)
         else:
             server.set_aborted(MoveBaseResult(), text)
+
+    def _ended(self, outcome, text):
+        self.last_outcome = (outcome, text)
+        self.ended += 1
 
     def _plan(self, target, planner=None):
         frame = target.header.frame_id.lstrip("/")
@@ -152,7 +181,7 @@ class MoveBaseStandIn:
         factor = self.config.speed_factor
         period = max(0.01, 1.0 / (self.config.control_rate * factor))  # at most 100 Hz, however fast the sim
         stuck = _ProgressWatch(self.config.stuck_timeout / factor)
-        replan = _ReplanWatch(self.planner)
+        replan = _ReplanWatch(self.planner, max(MIN_REPLAN_CHECK_PERIOD, REPLAN_CHECK_PERIOD / factor))
         settle_until = None
         while not rospy.is_shutdown() and not self._closed.is_set() and not endpoint.withdrawn.is_set():
             if endpoint.server.is_preempt_requested():
@@ -220,6 +249,18 @@ class _Endpoint:
                                                    auto_start=False)
         self.server.start()
 
+    def has_clients(self):
+        """True when the master knows a node publishing goals to this action (a client)."""
+        _, _, (publishers, _, _) = rospy.get_master().getSystemState()
+        goal_topic = self.server.action_server.goal_sub.resolved_name
+        return any(topic == goal_topic and nodes for topic, nodes in publishers)
+
+    def clients_connected(self):
+        """True when each topic of the action has a connection (clients heard the server)."""
+        actions = self.server.action_server
+        topics = (actions.goal_sub, actions.cancel_sub, actions.status_pub, actions.result_pub, actions.feedback_pub)
+        return all(t.get_num_connections() > 0 for t in topics)
+
     def close(self):
         self.withdrawn.set()
         server = self.server
@@ -239,13 +280,14 @@ class _Endpoint:
 
 
 class _ReplanWatch:
-    """Asks a growing map's planner, once a second and only when the map changed, whether the path is blocked."""
+    """Asks a growing map's planner, every ``period`` s and only when the map changed, whether the path is blocked."""
 
-    def __init__(self, planner):
+    def __init__(self, planner, period):
         self.planner = planner
+        self.period = period
         self._blocked = getattr(planner, "path_blocked", None)
         self._version = self._map_version()
-        self._next_check = time.monotonic() + REPLAN_CHECK_PERIOD
+        self._next_check = time.monotonic() + period
 
     def _map_version(self):
         slam = getattr(self.planner, "slam", None)
@@ -255,7 +297,7 @@ class _ReplanWatch:
         """True when the map grew an obstacle across ``remaining`` (the points still to drive)."""
         if self._blocked is None or now < self._next_check:
             return False
-        self._next_check = now + REPLAN_CHECK_PERIOD
+        self._next_check = now + self.period
         version = self._map_version()
         if version == self._version:
             return False
