@@ -86,8 +86,12 @@ async function loadMap(tries = 3) {
 }
 
 
+let waypointLoads = 0;  // answers can cross (a change, its event, our own reload): the newest request wins
+
 export async function loadWaypoints() {
+  const mine = ++waypointLoads;
   const data = await api("GET", "/waypoints");
+  if (mine !== waypointLoads) return;
   map.setWaypoints(data.waypoints);
   const list = $("places");
   list.replaceChildren(...data.waypoints.map(placeRow));

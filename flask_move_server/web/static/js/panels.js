@@ -24,12 +24,16 @@ export function showMode(m) {
 }
 
 /** Reads `GET /maps` into the list: thumbnail, name, Use, Delete. */
+let mapListLoads = 0;  // the newest request wins, as for the waypoints
+
 export async function loadMaps() {
+  const mine = ++mapListLoads;
   let data;
   try { data = await api("GET", "/maps"); } catch (e) {
     if (e.status === 404) { $("maps").replaceChildren(); return; }
     throw e;
   }
+  if (mine !== mapListLoads) return;
   $("maps").replaceChildren(...data.maps.map((m) => mapRow(m, m.name === data.active)));
   $("maps").dataset.count = String(data.maps.length);
 }
