@@ -60,6 +60,9 @@ async function thumbnail(m) {
   if (!thumbnails.has(key)) {
     const response = await authorisedFetch("/maps/" + encodeURIComponent(m.name) + "/image");
     if (!response.ok) return null;
+    for (const [old, url] of thumbnails) {  // the same map saved again: let its old picture go
+      if (old.startsWith(m.name + "@")) { URL.revokeObjectURL(url); thumbnails.delete(old); }
+    }
     thumbnails.set(key, URL.createObjectURL(await response.blob()));
   }
   return thumbnails.get(key);
