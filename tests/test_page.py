@@ -444,3 +444,21 @@ def test_the_event_parser_reads_events_however_the_bytes_are_cut(page):
     }""")
     once = [["pose", '{"x": 1}'], ["mode", '{"mode":\n"idle"}'], ["message", "plain"]]
     assert events == once * 6
+
+
+def test_the_keyboard_drives_on_a_desktop_and_letting_go_stops(sim, browser):
+    at_rest(sim)
+    page = browser.open(sim.url + "/", device=DESKTOP)
+    live(page)
+    log = RequestLog(page)
+    page.keyboard.down("ArrowUp")
+    page.keyboard.down("ArrowLeft")  # forward and turning left: the right side faster
+    wait_for(lambda: sim.status()["motors"]["right"] > sim.status()["motors"]["left"] >= 0, timeout=10,
+             message="the arrow keys to drive the motors")
+    page.wait_for_timeout(600)  # longer than the deadman: the page repeats, not the key's auto-repeat
+    assert sim.status()["motors"]["right"] > 0
+    page.keyboard.up("ArrowLeft")
+    page.keyboard.up("ArrowUp")
+    wait_for(lambda: log.calls("POST", "/stop"), timeout=5, message="a stop when the last key is let go")
+    assert sim.status()["motors"]["left"] == 0.0 and sim.status()["motors"]["right"] == 0.0
+    page.close()

@@ -57,3 +57,48 @@ export class Joystick {
 }
 
 const round = (v) => Math.round(v * 100) / 100;
+
+const KEYS = {ArrowUp: [1, 0], KeyW: [1, 0], ArrowDown: [-1, 0], KeyS: [-1, 0],
+              ArrowLeft: [0, 1], KeyA: [0, 1], ArrowRight: [0, -1], KeyD: [0, -1]};
+
+/** The keyboard on a desktop: arrows or WASD held drive like the joystick pushed to its edge,
+ *  with the same steady repeats and the same stop when the last key is let go or focus is lost. */
+export class KeyDrive {
+  constructor({send, stop, enabled, maxLinear = 0.3, maxAngular = 1.2}) {
+    Object.assign(this, {send, stop, enabled, maxLinear, maxAngular});
+    this.held = new Set();
+    this.timer = null;
+    window.addEventListener("keydown", (e) => this.down(e));
+    window.addEventListener("keyup", (e) => this.up(e));
+    window.addEventListener("blur", () => this.release());
+    document.addEventListener("visibilitychange", () => { if (document.hidden) this.release(); });
+  }
+
+  down(e) {
+    if (!KEYS[e.code] || e.target.tagName === "INPUT" || !this.enabled()) return;
+    e.preventDefault();
+    if (this.held.has(e.code)) return;  // the key's own auto-repeat: our timer sets the pace
+    this.held.add(e.code);
+    this.tick();
+    if (!this.timer) this.timer = setInterval(() => this.tick(), RATE_MS);
+  }
+
+  up(e) {
+    if (!this.held.delete(e.code)) return;
+    if (this.held.size === 0) this.release();
+  }
+
+  tick() {
+    let forward = 0, turn = 0;
+    for (const code of this.held) { forward += KEYS[code][0]; turn += KEYS[code][1]; }
+    this.send({linear: round(Math.sign(forward) * this.maxLinear), angular: round(Math.sign(turn) * this.maxAngular)});
+  }
+
+  release() {
+    if (!this.timer) return;
+    this.held.clear();
+    clearInterval(this.timer);
+    this.timer = null;
+    this.stop();
+  }
+}

@@ -1,6 +1,6 @@
 // The phone page: wires the live feed, the map, the joystick and the panels to the API.
 import {api, authorisedFetch, askTokenAgain} from "./api.js";
-import {Joystick} from "./joystick.js";
+import {Joystick, KeyDrive} from "./joystick.js";
 import {Live} from "./live.js";
 import {MapView} from "./mapview.js";
 import {initPanels, showMode, loadMaps} from "./panels.js";
@@ -195,7 +195,7 @@ function showConnection(state) {
   for (const el of document.querySelectorAll(".needs-live")) {
     if (el.tagName === "BUTTON") el.disabled = off; else el.setAttribute("aria-disabled", String(off));
   }
-  if (off) joystick.release();
+  if (off) { joystick.release(); keys.release(); }
 }
 
 /** After every (re)connect: read the whole state again, never trusting what the page held. */
@@ -229,7 +229,12 @@ const joystick = new Joystick($("pad"), $("knob"), {
   send: (command) => quietly(call("POST", "/teleop", command)),
   stop: () => quietly(call("POST", "/stop")),
 });
-$("stop").onclick = () => { joystick.release(); quietly(call("POST", "/stop")); };
+const keys = new KeyDrive({
+  send: (command) => quietly(call("POST", "/teleop", command)),
+  stop: () => quietly(call("POST", "/stop")),
+  enabled: () => isLive(),
+});
+$("stop").onclick = () => { joystick.release(); keys.release(); quietly(call("POST", "/stop")); };
 $("cancel").onclick = () => quietly(call("POST", "/stop"));
 $("estop").onclick = () => quietly(call("POST", "/estop"));
 $("estop-release").onclick = () => {
