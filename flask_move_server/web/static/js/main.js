@@ -20,6 +20,7 @@ export function report(error) {
 }
 export const call = (method, path, body) => api(method, path, body).catch((e) => { report(e); throw e; });
 const quietly = (promise) => promise.catch(() => {});
+const buzz = () => { if (navigator.vibrate) navigator.vibrate(30); };  // a felt "sent" on phones that can
 
 function showNavigation(nav) {
   const box = $("nav"), state = nav.state;
@@ -116,7 +117,7 @@ export function button(label, className, onClick) {
   return b;
 }
 
-const goTo = (name) => quietly(call("POST", "/goto", {name}));
+const goTo = (name) => { buzz(); return quietly(call("POST", "/goto", {name})); };
 
 async function renamePlace(w) {
   const name = (window.prompt("New name for " + w.name + ":", w.name) || "").trim();
@@ -143,6 +144,7 @@ map.onWaypoint = (name) => { if (isLive()) goTo(name); };
 map.onPress = (mode, x, y, yaw) => {
   if (!isLive()) return;
   const pose = {x: round(x), y: round(y), yaw: round(yaw)};
+  buzz();
   if (mode === "go") quietly(call("POST", "/goto", pose));
   else if (mode === "pose") quietly(call("POST", "/pose", pose).then(() => setGesture("go")));
   else if (mode === "mark") markPlace(pose.x, pose.y, pose.yaw).then(() => setGesture("go"));
@@ -234,7 +236,7 @@ const keys = new KeyDrive({
   stop: () => quietly(call("POST", "/stop")),
   enabled: () => isLive(),
 });
-$("stop").onclick = () => { joystick.release(); keys.release(); quietly(call("POST", "/stop")); };
+$("stop").onclick = () => { buzz(); joystick.release(); keys.release(); quietly(call("POST", "/stop")); };
 $("cancel").onclick = () => quietly(call("POST", "/stop"));
 $("estop").onclick = () => quietly(call("POST", "/estop"));
 $("estop-release").onclick = () => {
