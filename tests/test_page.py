@@ -290,6 +290,12 @@ def test_marking_places_renaming_and_deleting_them(sim, page, browser):
     assert sim.waypoint("window") == saved
     page.wait_for_selector('#places li[data-name="here now"]', state="detached")
 
+    page.answers.extend(["hall spot", False])  # renaming onto another waypoint's name: "Replace?" no
+    page.locator('#places li[data-name="window"] button', has_text="Rename").tap()
+    wait_for(lambda: page.wait_for_timeout(20) or "Replace the waypoint hall spot?" in page.asked, timeout=5,
+             message="the replace confirmation")
+    assert sim.waypoint("hall spot") == [x, y, yaw] and sim.get("/waypoints/window").status_code == 200
+
     page.answers.append(False)  # "Delete the waypoint?" answered no: nothing happens
     asked = len(page.asked)
     page.locator('#places li[data-name="window"] button', has_text="Delete").tap()

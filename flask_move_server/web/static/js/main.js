@@ -119,9 +119,14 @@ export function button(label, className, onClick) {
 
 const goTo = (name) => { buzz(); return quietly(call("POST", "/goto", {name})); };
 
+/** A new waypoint under a name in use replaces that one: ask first (destructive). */
+function mayReplace(name) {
+  return !map.waypoints.some((w) => w.name === name) || window.confirm("Replace the waypoint " + name + "?");
+}
+
 async function renamePlace(w) {
   const name = (window.prompt("New name for " + w.name + ":", w.name) || "").trim();
-  if (!name || name === w.name) return;
+  if (!name || name === w.name || !mayReplace(name)) return;
   await quietly(call("PUT", "/waypoints/" + encodeURIComponent(name), {x: w.x, y: w.y, yaw: w.yaw})
     .then(() => call("DELETE", "/waypoints/" + encodeURIComponent(w.name))));
   quietly(loadWaypoints());
@@ -135,7 +140,7 @@ async function deletePlace(name) {
 
 async function markPlace(x, y, yaw) {
   const name = (window.prompt("Name this place:") || "").trim();
-  if (!name) return;
+  if (!name || !mayReplace(name)) return;
   await quietly(call("PUT", "/waypoints/" + encodeURIComponent(name), {x, y, yaw}));
   quietly(loadWaypoints());
 }
@@ -245,7 +250,7 @@ $("estop-release").onclick = () => {
 $("mark-form").onsubmit = (e) => {
   e.preventDefault();
   const name = $("newname").value.trim();
-  if (!name || !isLive()) return;
+  if (!name || !isLive() || !mayReplace(name)) return;
   quietly(call("PUT", "/waypoints/" + encodeURIComponent(name), {from: "current"})
     .then(() => { $("newname").value = ""; return loadWaypoints(); }));
 };
