@@ -24,12 +24,17 @@ def server(tmp_path_factory):
 
 
 @pytest.fixture(scope="module")
-def page(server):
-    browser = Browser()
+def browser():
+    b = Browser()
+    yield b
+    b.close()
+
+
+@pytest.fixture(scope="module")
+def page(server, browser):
     page = browser.open(server["sim"].url + "/", answers=[TOKEN])
     page.log = RequestLog(page)
-    yield page
-    browser.close()
+    return page
 
 
 def go_from_the_list(page, name):
@@ -72,3 +77,17 @@ def test_a_restarted_server_is_reconnected_to(server, page, tmp_path_factory):
     sim.post("/stop")
     assert len(page.asked) == 1, "the token is asked for once, not again after reconnecting"
     assert page.errors == []
+
+
+def test_a_dismissed_token_question_says_so_and_the_token_button_asks_again(server, browser):
+    page = browser.open(server["sim"].url + "/", answers=[False])  # another phone: the question dismissed
+    page.wait_for_function("document.body.dataset.connection === 'unauthorised'", timeout=20000)
+    assert page.inner_text("#conn") == "token needed" and len(page.asked) == 1
+    page.wait_for_timeout(1500)
+    assert len(page.asked) == 1, "not asked again on every retry"
+    page.answers.append(TOKEN)
+    page.locator("#tabs button[data-tab=maps]").tap()
+    page.locator("#token").tap()
+    live(page)
+    page.wait_for_selector("#places li[data-name=kitchen]", state="attached")
+    page.close()

@@ -73,20 +73,24 @@ export class Live {
       const outcome = await this.stream().catch(() => "failed");
       if (outcome === "absent") { await this.poll(Infinity); continue; }
       if (outcome === "busy") { await this.poll(BUSY_POLL_MS); continue; }
-      this.setState("reconnecting");
+      this.setState(outcome === "unauthorised" ? "unauthorised" : "reconnecting");
       await sleep(BACKOFF_MS[Math.min(this.failures++, BACKOFF_MS.length - 1)]);
     }
   }
 
   /** Reads one /events stream to its end: "absent" when the server has none, "busy" when it has
-   *  no stream to spare (503 too_many_streams), else "ended". */
+   *  no stream to spare (503 too_many_streams), "unauthorised" (no or a wrong token), else "ended". */
   async stream() {
     const abort = new AbortController();
     let watchdog = setTimeout(() => abort.abort(), IDLE_LIMIT_MS);
     try {
       const response = await authorisedFetch("/events", {headers: {"Accept": "text/event-stream"}, signal: abort.signal});
       if (response.status === 404) return "absent";
-      if (response.status === 503) return "busy";
+      if (response.status === 401) return "unauthorised";
+      if (response.status === 503) {  // busy only when every stream is taken; else (stopping) reconnect
+        const body = await response.json().catch(() => ({}));
+        return body.error === "too_many_streams" ? "busy" : "ended";
+      }
       if (!response.ok || !response.body) return "ended";
       this.failures = 0;
       this.setState("live");

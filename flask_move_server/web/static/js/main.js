@@ -195,7 +195,8 @@ const isLive = () => live.state === "live" || live.state === "polling";
 
 function showConnection(state) {
   document.body.dataset.connection = state;
-  $("conn").textContent = {live: "live", polling: "live (polling)", reconnecting: "reconnecting…"}[state] || state;
+  $("conn").textContent = {live: "live", polling: "live (polling)", reconnecting: "reconnecting…",
+                           unauthorised: "token needed"}[state] || state;
   const off = !isLive();
   map.offline = off;
   showStaleNote();
