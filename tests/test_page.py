@@ -128,8 +128,8 @@ def test_the_joystick_drives_and_letting_go_stops(sim, page):
     assert len(log.calls("POST", "/teleop")) >= 3
     finger.lift()
     wait_for(lambda: log.calls("POST", "/stop"), timeout=5, message="a stop sent on release")
-    motors = sim.status()["motors"]
-    assert (motors["left"], motors["right"]) == (0.0, 0.0)
+    wait_for(lambda: (sim.status()["motors"]["left"], sim.status()["motors"]["right"]) == (0.0, 0.0), timeout=5,
+             message="the motors stopped")
 
 
 HIDE_PAGE = ("Object.defineProperty(document, 'hidden', {value: true, configurable: true});"
@@ -154,7 +154,7 @@ def test_losing_focus_or_hiding_the_page_stops_the_joystick(sim, page, event):
     teleops = len(log.calls("POST", "/teleop"))
     page.wait_for_timeout(500)
     assert len(log.calls("POST", "/teleop")) == teleops, "no command after that, the finger still down"
-    assert sim.status()["motors"]["left"] == 0.0
+    wait_for(lambda: sim.status()["motors"]["left"] == 0.0, timeout=5, message="the motors stopped")
     if event != "touchcancel":
         finger.lift()
 
@@ -466,5 +466,6 @@ def test_the_keyboard_drives_on_a_desktop_and_letting_go_stops(sim, browser):
     page.keyboard.up("ArrowLeft")
     page.keyboard.up("ArrowUp")
     wait_for(lambda: log.calls("POST", "/stop"), timeout=5, message="a stop when the last key is let go")
-    assert sim.status()["motors"]["left"] == 0.0 and sim.status()["motors"]["right"] == 0.0
+    wait_for(lambda: sim.status()["motors"]["left"] == 0.0 and sim.status()["motors"]["right"] == 0.0, timeout=5,
+             message="the motors stopped")
     page.close()

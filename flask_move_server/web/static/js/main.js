@@ -233,15 +233,21 @@ live.on("mode", (m) => { showMode(m); quietly(loadMaps()); quietly(loadMap()); }
 
 // ---- controls -------------------------------------------------------------------------
 
-const joystick = new Joystick($("pad"), $("knob"), {
-  send: (command) => quietly(call("POST", "/teleop", command)),
-  stop: () => quietly(call("POST", "/stop")),
-});
-const keys = new KeyDrive({
-  send: (command) => quietly(call("POST", "/teleop", command)),
-  stop: () => quietly(call("POST", "/stop")),
-  enabled: () => isLive(),
-});
+// Driving: one teleop request at a time (a slow link skips a beat rather than queueing them), and
+// a stop sent at once and again once a teleop still on its way has landed, which could otherwise
+// reach the robot after the stop and drive it on for the deadman time.
+let teleopInFlight = null;
+function sendTeleop(command) {
+  if (teleopInFlight) return;
+  const sent = teleopInFlight = call("POST", "/teleop", command);
+  sent.catch(() => {}).then(() => { if (teleopInFlight === sent) teleopInFlight = null; });
+}
+function stopDriving() {
+  quietly(call("POST", "/stop"));
+  if (teleopInFlight) teleopInFlight.catch(() => {}).then(() => quietly(call("POST", "/stop")));
+}
+const joystick = new Joystick($("pad"), $("knob"), {send: sendTeleop, stop: stopDriving});
+const keys = new KeyDrive({send: sendTeleop, stop: stopDriving, enabled: () => isLive()});
 $("stop").onclick = () => { buzz(); joystick.release(); keys.release(); quietly(call("POST", "/stop")); };
 $("cancel").onclick = () => quietly(call("POST", "/stop"));
 $("estop").onclick = () => quietly(call("POST", "/estop"));
