@@ -15,6 +15,8 @@ ROS_DEBS := python3-rospy python3-rosmaster python3-roslaunch python3-rosgraph p
 # systemd-analyze verify and rospack for the deployment tests (units, launch files).
 # python3-wheel: pip's --no-build-isolation installs (installer tests, test-debian) on Debian's setuptools.
 DEPLOY_TEST_DEBS := systemd rospack-tools python3-wheel
+# The phone page's browser tests: Debian's chromium, driven by Playwright (no browser download).
+BROWSER_TEST_DEBS := chromium
 # Debian's own builds of our Python dependencies: what a Pi gets from apt (make test-debian).
 DEBIAN_PY_DEBS := python3-flask python3-waitress python3-yaml python3-requests python3-zeroconf \
 	python3-serial python3-pytest python3-pytest-timeout python3-hypothesis python3-setuptools
@@ -24,7 +26,7 @@ DEBIAN_PY_DEBS := python3-flask python3-waitress python3-yaml python3-requests p
 setup: $(VENV)/.installed
 
 $(VENV)/.installed: setup.py Makefile
-	./scripts/apt-ensure $(ROS_DEBS) $(DEPLOY_TEST_DEBS)
+	./scripts/apt-ensure $(ROS_DEBS) $(DEPLOY_TEST_DEBS) $(BROWSER_TEST_DEBS)
 	$(SYSTEM_PYTHON) -m venv --system-site-packages $(VENV)
 	$(PY) -m pip install -q --disable-pip-version-check --upgrade --upgrade-strategy eager -e '.[test]'
 	touch $@
@@ -60,7 +62,8 @@ DEMO_WAYPOINTS ?= build/demo/waypoints.yaml
 demo: setup
 	@mkdir -p $(dir $(DEMO_WAYPOINTS))
 	@test -f $(DEMO_WAYPOINTS) || cp config/waypoints.demo.yaml $(DEMO_WAYPOINTS)
-	@echo "Simulated robot on $(DEMO_URL) (Ctrl-C stops it). In another terminal, try:"
+	@echo "Simulated robot on $(DEMO_URL) (Ctrl-C stops it). Open $(DEMO_URL)/ in a browser for the phone page."
+	@echo "In another terminal, try:"
 	@echo "  curl $(DEMO_URL)/waypoints"
 	@echo "  curl -d '{\"name\": \"kitchen\"}' $(DEMO_URL)/goto"
 	@echo "  watch -n 0.5 curl -s $(DEMO_URL)/status"

@@ -23,7 +23,7 @@ setup(
     python_requires=">=3.8",
     packages=find_packages(include=["flask_move_server", "flask_move_server.*"]),
     include_package_data=True,
-    package_data={"flask_move_server": ["web/static/*"]},
+    package_data={"flask_move_server": ["web/static/*", "web/static/js/*"]},
     # The demo map and the documented config, where `--sim` looks for them outside a checkout.
     data_files=[
         ("share/flask_move_server/config/maps", ["config/maps/demo.yaml", "config/maps/demo.pgm"]),
@@ -42,7 +42,10 @@ setup(
         "test": ["pytest>=7", "pytest-timeout>=2", "hypothesis>=6", "ruff>=0.4", "vermin>=1.5",
                  # The API fuzz run (tests/test_openapi_fuzz.py), written for both: pip takes 4.x where the
                  # Python has one (3.9+; the newest need 3.11), 3.x on 3.8.
-                 "schemathesis>=3.27,<5"],
+                 "schemathesis>=3.27,<5",
+                 # The phone page's browser tests (tests/test_page_*.py) drive Debian's chromium with it;
+                 # the pip package brings its driver, never a browser (`playwright install` is not run).
+                 "playwright>=1.40"],
         "pi": ["RPi.GPIO>=0.7; platform_machine in 'armv7l aarch64'"],
     },
     entry_points={

@@ -1,0 +1,281 @@
+// The phone page: wires the live feed, the map, the joystick and the panels to the API.
+import {api, authorisedFetch, askTokenAgain} from "./api.js";
+import {Joystick, KeyDrive} from "./joystick.js";
+import {Live} from "./live.js";
+import {MapView} from "./mapview.js";
+import {initPanels, showMode, loadMaps} from "./panels.js";
+
+const $ = (id) => document.getElementById(id);
+const map = new MapView($("map"));
+const live = new Live();
+let mapVersion = null, mapEtag = null;
+
+// ---- errors and the status line -------------------------------------------------------
+
+let errorTimer = null;
+export function report(error) {
+  $("error").textContent = error.message;
+  clearTimeout(errorTimer);
+  errorTimer = setTimeout(() => { $("error").textContent = ""; }, 8000);
+}
+export const call = (method, path, body) => api(method, path, body).catch((e) => { report(e); throw e; });
+const quietly = (promise) => promise.catch(() => {});
+const buzz = () => { if (navigator.vibrate) navigator.vibrate(30); };  // a felt "sent" on phones that can
+
+function showNavigation(nav) {
+  const box = $("nav"), state = nav.state;
+  const where = nav.target || (nav.goal ? "x " + nav.goal.x.toFixed(1) + ", y " + nav.goal.y.toFixed(1) : "the goal");
+  let text = "idle";
+  if (state === "canceling") text = "stopping…";
+  else if (state === "active" || state === "pending") {
+    text = "on its way to " + where + (nav.distance_remaining != null ? " – " + nav.distance_remaining.toFixed(1) + " m" : "");
+  } else if (state === "succeeded") text = "arrived at " + where;
+  else if (state === "aborted" || state === "rejected") text = "failed: " + (nav.message || "move_base gave up on " + where);
+  else if (state === "canceled") text = "cancelled";
+  $("nav-text").textContent = text;
+  box.dataset.state = state;
+  box.dataset.target = nav.target || "";
+  $("cancel").hidden = !(state === "active" || state === "pending");
+  map.setGoal(state === "active" || state === "pending" ? nav.goal : null);
+  if (!(state === "active" || state === "pending")) map.setPlan([]);
+}
+
+function showStatus(status) {
+  if (status.navigation) showNavigation(status.navigation);
+  const m = status.motors;
+  if (m) {
+    $("motors").dataset.left = String(m.left);
+    $("motors").dataset.right = String(m.right);
+    $("motors").textContent = "motors\n" + Number(m.left).toFixed(2) + " / " + Number(m.right).toFixed(2);
+  }
+}
+
+function showEstop(estop) {
+  $("estop-banner").hidden = !estop.latched;
+  document.body.dataset.estop = estop.latched ? "1" : "0";
+  const by = {api: "from a page or robotctl", button: "by the e-stop button"}[estop.source] || estop.source;
+  $("estop-why").textContent = estop.latched && by ? by : "";
+}
+
+// ---- the map, the waypoints ------------------------------------------------------------
+
+let mapLoads = 0;  // only the newest of overlapping loads may draw (map events can come quickly while mapping)
+
+/** Reads /map, then its image; the image must be of the version the metadata describes (its
+ *  ETag ends in "-<version>"), else the map grew in between and both are read again. */
+async function loadMap(tries = 3) {
+  const mine = ++mapLoads;
+  let meta;
+  try { meta = await api("GET", "/map"); } catch (e) {
+    if (mine !== mapLoads) return;
+    if (e.status === 404) { map.setMap(null); mapVersion = mapEtag = null; }
+    $("map-note").textContent = e.status === 404 ? "no map in use" : e.message;
+    return;
+  }
+  const headers = mapEtag && meta.version === mapVersion ? {"If-None-Match": mapEtag} : {};
+  const response = await authorisedFetch("/map/image", {headers});
+  if (response.status === 304) { $("map-note").textContent = ""; return; }
+  if (!response.ok) { $("map-note").textContent = "the map image did not load"; return; }
+  const etag = response.headers.get("ETag") || "";
+  if (!etag.replace(/"/g, "").endsWith("-" + meta.version) && tries > 1) return loadMap(tries - 1);
+  const image = await createImageBitmap(await response.blob());
+  if (mine !== mapLoads) return;
+  mapEtag = etag;
+  mapVersion = meta.version;
+  map.setMap(meta, image);
+  $("map-note").textContent = "";
+}
+
+
+let waypointLoads = 0;  // answers can cross (a change, its event, our own reload): the newest request wins
+
+export async function loadWaypoints() {
+  const mine = ++waypointLoads;
+  const data = await api("GET", "/waypoints");
+  if (mine !== waypointLoads) return;
+  map.setWaypoints(data.waypoints);
+  const list = $("places");
+  list.replaceChildren(...data.waypoints.map(placeRow));
+  list.dataset.count = String(data.waypoints.length);
+}
+
+function placeRow(w) {
+  const li = document.createElement("li");
+  li.dataset.name = w.name;
+  li.append(button(w.name, "go needs-live", () => goTo(w.name)),
+    button("Rename", "quiet", () => renamePlace(w)), button("Delete", "quiet", () => deletePlace(w.name)));
+  return li;
+}
+
+export function button(label, className, onClick) {
+  const b = document.createElement("button");
+  b.type = "button";
+  b.textContent = label;
+  b.className = className;
+  b.disabled = className.includes("needs-live") && !isLive();
+  b.onclick = onClick;
+  return b;
+}
+
+const goTo = (name) => { buzz(); return quietly(call("POST", "/goto", {name})); };
+
+/** A new waypoint under a name in use replaces that one: ask first (destructive). */
+function mayReplace(name) {
+  return !map.waypoints.some((w) => w.name === name) || window.confirm("Replace the waypoint " + name + "?");
+}
+
+async function renamePlace(w) {
+  const name = (window.prompt("New name for " + w.name + ":", w.name) || "").trim();
+  if (!name || name === w.name || !mayReplace(name)) return;
+  await quietly(call("PUT", "/waypoints/" + encodeURIComponent(name), {x: w.x, y: w.y, yaw: w.yaw})
+    .then(() => call("DELETE", "/waypoints/" + encodeURIComponent(w.name))));
+  quietly(loadWaypoints());
+}
+
+async function deletePlace(name) {
+  if (!window.confirm("Delete the waypoint " + name + "?")) return;
+  await quietly(call("DELETE", "/waypoints/" + encodeURIComponent(name)));
+  quietly(loadWaypoints());
+}
+
+async function markPlace(x, y, yaw) {
+  const name = (window.prompt("Name this place:") || "").trim();
+  if (!name || !mayReplace(name)) return;
+  await quietly(call("PUT", "/waypoints/" + encodeURIComponent(name), {x, y, yaw}));
+  quietly(loadWaypoints());
+}
+
+map.onWaypoint = (name) => { if (isLive()) goTo(name); };
+map.onPress = (mode, x, y, yaw) => {
+  if (!isLive()) return;
+  const pose = {x: round(x), y: round(y), yaw: round(yaw)};
+  buzz();
+  if (mode === "go") quietly(call("POST", "/goto", pose));
+  else if (mode === "pose") quietly(call("POST", "/pose", pose).then(() => setGesture("go")));
+  else if (mode === "mark") markPlace(pose.x, pose.y, pose.yaw).then(() => setGesture("go"));
+};
+const round = (v) => Math.round(v * 1000) / 1000;
+map.onTap = (mode) => {
+  if (mode === "look") return;
+  const what = {go: "send the robot there", pose: "say where the robot is", mark: "mark a place"}[mode];
+  flashHint("Press and drag to " + what + ": the drag sets the heading.");
+};
+
+let hintTimer = null;
+function flashHint(text) {
+  $("hint").textContent = text;
+  clearTimeout(hintTimer);
+  hintTimer = setTimeout(() => { $("hint").textContent = HINTS[map.mode] || ""; }, 3000);
+}
+
+const HINTS = {
+  go: "",
+  pose: "Press where the robot really is, drag the way it faces.",
+  mark: "Press a place, drag the way it should face, then name it.",
+  look: "Drag to move the map; pinch or two fingers to zoom.",
+};
+
+export function setGesture(mode) {
+  map.mode = mode;
+  $("hint").textContent = HINTS[mode] || "";
+  for (const b of document.querySelectorAll("#gesture button")) b.setAttribute("aria-pressed", String(b.dataset.gesture === mode));
+  $("map").dataset.gesture = mode;
+}
+
+/** The note on the map when the grey robot needs a word: lost connection or an old pose. */
+function showStaleNote() {
+  const note = !isLive() ? "robot not connected: its last known position" :
+    !map.robot ? "position unknown" : map.robotStale() ? "position is old (localisation or ROS stalled)" : "";
+  $("stale-note").textContent = note;
+}
+
+// ---- live state -----------------------------------------------------------------------
+
+const isLive = () => live.state === "live" || live.state === "polling";
+
+function showConnection(state) {
+  document.body.dataset.connection = state;
+  $("conn").textContent = {live: "live", polling: "live (polling)", reconnecting: "reconnecting…",
+                           unauthorised: "token needed"}[state] || state;
+  const off = !isLive();
+  map.offline = off;
+  showStaleNote();
+  for (const el of document.querySelectorAll(".needs-live")) {
+    if (el.tagName === "BUTTON") el.disabled = off; else el.setAttribute("aria-disabled", String(off));
+  }
+  if (off) { joystick.release(); keys.release(); }
+}
+
+/** After every (re)connect: read the whole state again, never trusting what the page held. */
+function resync() {
+  quietly(api("GET", "/status").then((s) => {
+    map.setPose(s.pose);
+    showStaleNote();
+    showStatus(s);
+    if (s.estop) showEstop(s.estop);
+  }));
+  api("GET", "/mode").then(showMode, (e) => { if (e.status === 404) $("mode").textContent = "robot"; });
+  quietly(loadWaypoints());
+  quietly(loadMap());
+  quietly(loadMaps());
+}
+
+live.onState = showConnection;
+live.onConnected = resync;
+live.on("pose", (p) => { map.setPose(p); showStaleNote(); });
+setInterval(showStaleNote, 500);  // a pose that stops coming greys the robot without any event
+live.on("status", showStatus);
+live.on("estop", showEstop);
+live.on("plan", (p) => map.setPlan(p.poses));
+live.on("waypoints", () => quietly(loadWaypoints()));
+live.on("map", (m) => { if (m.version !== mapVersion) quietly(loadMap()); });
+live.on("mode", (m) => { showMode(m); quietly(loadMaps()); quietly(loadMap()); });
+
+// ---- controls -------------------------------------------------------------------------
+
+// Driving: one teleop request at a time (a slow link skips a beat rather than queueing them), and
+// a stop sent at once and again once a teleop still on its way has landed, which could otherwise
+// reach the robot after the stop and drive it on for the deadman time.
+let teleopInFlight = null;
+function sendTeleop(command) {
+  if (teleopInFlight) return;
+  const sent = teleopInFlight = call("POST", "/teleop", command);
+  sent.catch(() => {}).then(() => { if (teleopInFlight === sent) teleopInFlight = null; });
+}
+function stopDriving() {
+  quietly(call("POST", "/stop"));
+  if (teleopInFlight) teleopInFlight.catch(() => {}).then(() => quietly(call("POST", "/stop")));
+}
+const joystick = new Joystick($("pad"), $("knob"), {send: sendTeleop, stop: stopDriving});
+const keys = new KeyDrive({send: sendTeleop, stop: stopDriving, enabled: () => isLive()});
+$("stop").onclick = () => { buzz(); joystick.release(); keys.release(); quietly(call("POST", "/stop")); };
+$("cancel").onclick = () => quietly(call("POST", "/stop"));
+$("estop").onclick = () => quietly(call("POST", "/estop"));
+$("estop-release").onclick = () => {
+  if (window.confirm("Release the e-stop? The robot can move again.")) quietly(call("POST", "/estop/release"));
+};
+$("mark-form").onsubmit = (e) => {
+  e.preventDefault();
+  const name = $("newname").value.trim();
+  if (!name || !isLive() || !mayReplace(name)) return;
+  quietly(call("PUT", "/waypoints/" + encodeURIComponent(name), {from: "current"})
+    .then(() => { $("newname").value = ""; return loadWaypoints(); }));
+};
+for (const b of document.querySelectorAll("#gesture button")) b.onclick = () => setGesture(b.dataset.gesture);
+$("fit").onclick = () => map.fit();
+$("follow").onclick = () => { map.follow = !map.follow; };
+setInterval(() => $("follow").setAttribute("aria-pressed", String(map.follow)), 250);
+for (const tab of document.querySelectorAll("#tabs button")) {
+  tab.onclick = () => {
+    for (const t of document.querySelectorAll("#tabs button")) {
+      t.setAttribute("aria-selected", String(t === tab));
+      $("tab-" + t.dataset.tab).hidden = t !== tab;
+    }
+  };
+}
+$("mode").onclick = () => flashHint($("mode").title || "");  // a phone has no hover: tap the mode for its message
+$("token").onclick = () => askTokenAgain().then(() => resync());
+initPanels({call, report, setGesture, isLive});
+setGesture("go");
+showConnection("connecting");
+live.start();

@@ -1,0 +1,92 @@
+// Drawing the map view: the map image (or a metre grid without one), the plan, the goal, the
+// waypoints, the robot and the arrow being dragged. Pure drawing: what to draw is the view's state.
+
+export const TAP_PX = 10;  // a press that moves less than this is a tap, not a drag (no arrow drawn)
+
+export function drawMap(v) {
+  const ctx = v.ctx;
+  ctx.fillStyle = "#9aa3ad";
+  ctx.fillRect(0, 0, v.width, v.height);
+  if (v.image && v.meta) drawImage(v, ctx);
+  else drawGrid(v, ctx);
+  drawPlan(v, ctx);
+  if (v.goal) drawArrow(v, ctx, v.goal.x, v.goal.y, v.goal.yaw, "#c2185b", 16);
+  drawWaypoints(v, ctx);
+  if (v.drawn && v.robot) {
+    const colour = v.robotStale() ? "#757575" : "#ff6d00";
+    drawArrow(v, ctx, v.drawn.x, v.drawn.y, v.drawn.yaw, colour, 20);
+  }
+  drawDrag(v, ctx);
+}
+
+function drawImage(v, ctx) {
+  ctx.imageSmoothingEnabled = v.view.scale * v.meta.resolution < 2;
+  const [l, t, w, h] = v.imageRect();
+  ctx.drawImage(v.image, l, t, w, h);
+}
+
+function drawGrid(v, ctx) {
+  ctx.fillStyle = "#eceff1";
+  ctx.fillRect(0, 0, v.width, v.height);
+  ctx.strokeStyle = "#cfd8dc";
+  ctx.lineWidth = 1;
+  const [x0, y1] = v.toWorld(0, 0), [x1, y0] = v.toWorld(v.width, v.height);
+  const step = v.view.scale < 10 ? 5 : 1;
+  ctx.beginPath();
+  for (let x = Math.ceil(x0 / step) * step; x <= x1; x += step) {
+    const s = v.toScreen(x, 0)[0]; ctx.moveTo(s, 0); ctx.lineTo(s, v.height);
+  }
+  for (let y = Math.ceil(y0 / step) * step; y <= y1; y += step) {
+    const s = v.toScreen(0, y)[1]; ctx.moveTo(0, s); ctx.lineTo(v.width, s);
+  }
+  ctx.stroke();
+}
+
+function drawPlan(v, ctx) {
+  if (v.plan.length < 2) return;
+  ctx.strokeStyle = "#0050c8";
+  ctx.lineWidth = 3;
+  ctx.lineJoin = "round";
+  ctx.beginPath();
+  v.plan.forEach(([x, y], i) => { const [sx, sy] = v.toScreen(x, y); i ? ctx.lineTo(sx, sy) : ctx.moveTo(sx, sy); });
+  ctx.stroke();
+}
+
+function drawWaypoints(v, ctx) {
+  ctx.font = "bold 14px system-ui, sans-serif";
+  ctx.textAlign = "center";
+  for (const w of v.waypoints) {
+    const [sx, sy] = v.toScreen(w.x, w.y);
+    ctx.fillStyle = "#00695c";
+    ctx.strokeStyle = "#fff";
+    ctx.lineWidth = 2;
+    ctx.beginPath(); ctx.arc(sx, sy, 7, 0, 2 * Math.PI); ctx.fill(); ctx.stroke();
+    ctx.lineWidth = 4;
+    ctx.strokeText(w.name, sx, sy - 12);
+    ctx.fillStyle = "#002b26";
+    ctx.fillText(w.name, sx, sy - 12);
+  }
+}
+
+function drawArrow(v, ctx, x, y, yaw, colour, size) {
+  const [sx, sy] = v.toScreen(x, y);
+  ctx.save();
+  ctx.translate(sx, sy);
+  ctx.rotate(-yaw);
+  ctx.beginPath();
+  ctx.moveTo(size, 0); ctx.lineTo(-size * 0.6, size * 0.6); ctx.lineTo(-size * 0.3, 0); ctx.lineTo(-size * 0.6, -size * 0.6);
+  ctx.closePath();
+  ctx.fillStyle = colour; ctx.fill();
+  ctx.lineWidth = 2; ctx.strokeStyle = "#111"; ctx.stroke();
+  ctx.restore();
+}
+
+function drawDrag(v, ctx) {
+  const g = v.gesture;
+  if (!g || g.kind !== "press" || v.mode === "look" || distance(g.start, g.now) < TAP_PX) return;
+  const [x, y] = v.toWorld(g.start[0], g.start[1]);
+  const yaw = Math.atan2(-(g.now[1] - g.start[1]), g.now[0] - g.start[0]);
+  drawArrow(v, ctx, x, y, yaw, v.mode === "pose" ? "#2e7d32" : "#c2185b", 24);
+}
+
+function distance(a, b) { return Math.hypot(a[0] - b[0], a[1] - b[1]); }
