@@ -15,6 +15,7 @@ class FakeModes:
     def __init__(self, events, mode="mapping", map_name=None):
         self.events = events
         self.calls = []
+        self.poses = []  # the pose each switch was given
         self.mode, self.map = mode, map_name
 
     @property
@@ -27,6 +28,7 @@ class FakeModes:
 
     def switch(self, mode, map_name=None, pose=None):
         self.calls.append(("switch", mode, map_name))
+        self.poses.append(pose)
         self.mode, self.map = mode, map_name
         self.events.publish("mode", self.status())
         return self.status()

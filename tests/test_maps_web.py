@@ -11,6 +11,7 @@ import pytest
 import yaml
 
 from flask_move_server.events import EventBus
+from flask_move_server.geometry import Pose2D
 from flask_move_server.maps.catalogue import MapCatalogue
 from flask_move_server.maps.mapfile import Grid
 from flask_move_server.maps.service import MapService
@@ -149,6 +150,16 @@ def test_then_navigation_switches_to_the_saved_map_and_its_waypoints_are_served(
     assert "sofa" not in open(robot_config.waypoints.file).read()
     assert client.get("/status").get_json()["waypoints"]["file"] == catalogue.waypoints_path("flat")
     assert client.get("/maps").get_json()["active"] == "flat"
+
+
+def test_then_navigation_keeps_the_robot_where_mapping_had_it_not_at_the_dock(client, modes, robot):
+    """The saved map has the mapping's frame, so the pose SLAM had is right; the dock would not be."""
+    robot.pose = Pose2D(3.0, 1.5, 0.7)
+    client.post("/maps", json={"name": "flat", "then": "navigation"})
+    modes.mode, robot.pose = "mapping", None  # mapping again; pose unknown: the switch falls back to the dock
+    client.post("/maps", json={"name": "flat", "overwrite": True, "then": "navigation"})
+    client.post("/maps", json={"name": "other"})
+    assert modes.poses == [Pose2D(3.0, 1.5, 0.7), None]
 
 
 # the folder cannot be written ----------------------------------------------------------------

@@ -156,8 +156,12 @@ class MapService:
 
     # saving --------------------------------------------------------------------------------
 
-    def save(self, name, overwrite=False, then=None):
+    def save(self, name, overwrite=False, then=None, here=None):
         """Save the latest map as ``name`` (mapping mode only); with ``then``, switch to it.
+
+        ``here``: the robot's pose in the map being saved (None: unknown). Switching straight to
+        the map keeps it there: the saved map has the mapping's frame, so that pose is right, and
+        the map's dock (a guess of where the robot stands) would be wrong.
 
         Checked before waiting for a map: the name, the mode, an existing name. The map
         files are written atomically; when adopting the waypoints fails, a map new under
@@ -178,7 +182,7 @@ class MapService:
             adopted = self._adopt_waypoints(name, existed) if first else False
         result = {"status": "ok", "map": self.describe(name), "adopted_waypoints": adopted}
         if then:
-            result.update(self._switch_to(name))
+            result.update(self._switch_to(name, here))
         return result
 
     def _require_mapping(self):
@@ -206,9 +210,9 @@ class MapService:
             raise MapFileError("Could not copy the waypoints of {} to the new map {!r} ({}); the map was not "
                                "saved.".format(self.single_file, name, getattr(exc, "strerror", None) or exc)) from exc
 
-    def _switch_to(self, name):
+    def _switch_to(self, name, here=None):
         """``"then": "navigation"``: switch to the saved map; the save stands even if the switch is refused."""
         try:
-            return {"mode": self.modes.switch("navigation", name)}
+            return {"mode": self.modes.switch("navigation", name, pose=here)}
         except MoveServerError as exc:
             return {"mode_error": {"error": exc.code, "message": str(exc)}}

@@ -9,7 +9,7 @@ without a byte of image while the map is unchanged.
 
 from flask import Blueprint, Response, current_app, jsonify, request
 
-from flask_move_server.errors import BadRequest, NoMap
+from flask_move_server.errors import BadRequest, NoMap, NoPose
 from flask_move_server.web.body import json_object, text
 
 maps_api = Blueprint("maps", __name__)
@@ -61,7 +61,15 @@ def save_map():
     then = data.get("then")
     if then is not None and then not in THEN:
         raise BadRequest("Field 'then' can only be \"navigation\" (switch to the saved map).")
-    return jsonify(_maps().save(name, overwrite=overwrite, then=then)), 201
+    return jsonify(_maps().save(name, overwrite=overwrite, then=then, here=_pose_if_known() if then else None)), 201
+
+
+def _pose_if_known():
+    """The robot's pose now, or None when it is not known (the switch then uses the map's dock)."""
+    try:
+        return current_app.extensions["flask_move_server"]["robot"].current_pose()
+    except NoPose:
+        return None
 
 
 @maps_api.route("/maps/<waypoint:name>", methods=["GET"])
