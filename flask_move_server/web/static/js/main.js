@@ -25,7 +25,7 @@ const buzz = () => { if (navigator.vibrate) navigator.vibrate(30); };  // a felt
 function showNavigation(nav) {
   const box = $("nav"), state = nav.state;
   const where = nav.target || (nav.goal ? "x " + nav.goal.x.toFixed(1) + ", y " + nav.goal.y.toFixed(1) : "the goal");
-  let text = "idle";
+  let text = "no goal: tap a place, or press and drag on the map";
   if (state === "canceling") text = "stopping…";
   else if (state === "active" || state === "pending") {
     text = "on its way to " + where + (nav.distance_remaining != null ? " – " + nav.distance_remaining.toFixed(1) + " m" : "");
