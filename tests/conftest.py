@@ -280,3 +280,18 @@ def hardened(app, server_config, loop_timeout=None):
         server.stop()
         thread.join(5)
         server.close()
+
+
+class SimReads:
+    """What tests read of a ``--sim`` server (a ServerProcess with a ``waypoints`` file path)."""
+
+    def status(self):
+        return self.get("/status").json()
+
+    def pose(self):
+        return self.status()["pose"]
+
+    def waypoint(self, name):
+        import yaml
+
+        return yaml.safe_load(self.waypoints.read_text())["waypoints"][name]

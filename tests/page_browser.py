@@ -12,10 +12,9 @@ import os
 import shutil
 
 import requests
-import yaml
 from playwright.sync_api import sync_playwright
 
-from tests.conftest import ROOT, ServerProcess, free_port, stop_process, wait_for
+from tests.conftest import ROOT, ServerProcess, SimReads, free_port, stop_process, wait_for
 
 CHROMIUM = "/usr/bin/chromium"
 CHROMIUM_ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
@@ -28,7 +27,7 @@ DEMO_WAYPOINTS = os.path.join(ROOT, "config", "waypoints.demo.yaml")
 IMAGES = os.path.join(ROOT, os.environ.get("PAGE_SCREENSHOTS", os.path.join("build", "screenshots")))
 
 
-class PageSim(ServerProcess):
+class PageSim(SimReads, ServerProcess):
     """``flask-move-server --sim`` for the page: its own master, a copy of the demo waypoints, a token if asked."""
 
     def __init__(self, folder, token=None, port=0, extra_config=""):
@@ -60,15 +59,6 @@ class PageSim(ServerProcess):
 
     def post(self, path, body=None, timeout=10):
         return requests.post(self.url + path, json=body, headers=self.headers(), timeout=timeout)
-
-    def status(self):
-        return self.get("/status").json()
-
-    def pose(self):
-        return self.status()["pose"]
-
-    def waypoint(self, name):
-        return yaml.safe_load(self.waypoints.read_text())["waypoints"][name]
 
     def close(self):
         stop_process(self.proc)

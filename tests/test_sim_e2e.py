@@ -19,15 +19,14 @@ import time
 
 import pytest
 import requests
-import yaml
 
-from tests.conftest import ROOT, ServerProcess, free_port, stop_process, wait_for
+from tests.conftest import ROOT, ServerProcess, SimReads, free_port, stop_process, wait_for
 
 SPEED_FACTOR = 4.0
 DEMO_WAYPOINTS = os.path.join(ROOT, "config", "waypoints.demo.yaml")
 
 
-class SimServer(ServerProcess):
+class SimServer(SimReads, ServerProcess):
     """``flask-move-server --sim`` in a child process, ready to drive."""
 
     def __init__(self, tmp_path):
@@ -44,15 +43,6 @@ class SimServer(ServerProcess):
         wait_for(lambda: self.get("/health").json().get("move_base") == "ready", timeout=30,
                  message="move_base stand-in ready")
         wait_for(lambda: self.pose() is not None, timeout=30, message="a pose from tf map -> base_link")
-
-    def status(self):
-        return self.get("/status").json()
-
-    def pose(self):
-        return self.status()["pose"]
-
-    def waypoint(self, name):
-        return yaml.safe_load(self.waypoints.read_text())["waypoints"][name]
 
 
 @pytest.fixture(scope="module")
