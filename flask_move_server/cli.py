@@ -266,6 +266,8 @@ class Server:
         finally:
             if self.events is not None:
                 self.events.close()  # open /events streams end now, not after waitress's 5 s drain
+            if self.http is not None:
+                self.http.finish_streams()
             raise SystemExit(self.exit_code)
 
     def fatal(self, reason):

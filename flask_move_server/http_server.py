@@ -180,11 +180,15 @@ class StopLaneDispatcher(ThreadedTaskDispatcher):
         super().__init__()
         self._spares = threading.BoundedSemaphore(SPARE_THREADS)
         self._streams = threading.BoundedSemaphore(max_streams) if max_streams else None
+        self._stream_threads = set()
 
     def add_task(self, task):
         if _is_stream(task) and self._streams is not None and self._streams.acquire(blocking=False):
-            threading.Thread(target=self._serve_stream, args=(task,), name="waitress-event-stream",
-                             daemon=True).start()
+            thread = threading.Thread(target=self._serve_stream, args=(task,), name="waitress-event-stream",
+                                      daemon=True)
+            with self.lock:
+                self._stream_threads.add(thread)
+            thread.start()
             return
         if not _is_urgent(task):
             super().add_task(task)  # a stream past max_streams too: the app answers it 503 at once
@@ -211,7 +215,17 @@ class StopLaneDispatcher(ThreadedTaskDispatcher):
         except BaseException:
             self.logger.exception("Exception when servicing %r", task)
         finally:
+            with self.lock:
+                self._stream_threads.discard(threading.current_thread())
             self._streams.release()
+
+    def join_streams(self, timeout):
+        """Wait up to ``timeout`` s for the open streams' threads to end (their event bus is closed)."""
+        deadline = time.monotonic() + timeout
+        with self.lock:
+            threads = list(self._stream_threads)
+        for thread in threads:
+            thread.join(max(0.0, deadline - time.monotonic()))
 
 
 def _request_line(channel):
@@ -343,6 +357,19 @@ class HttpServer:
         if not self._closed:
             self._servers[0].trigger.pull_trigger(self.close)
         self.dispatcher.shutdown()
+
+    def finish_streams(self, timeout=2.0):
+        """The server is stopping and the event bus is closed: let each stream write its end, and send it.
+
+        A stream's last chunk is written by its own thread into the connection's buffer, which
+        waitress's loop sends; the loop has stopped by now, so without this the connections were
+        dropped with the end unsent now and then, and a page saw a cut stream, not a clean end.
+        """
+        self.dispatcher.join_streams(timeout)
+        for channel in list(self._map.values()):
+            if isinstance(channel, RobotChannel) and channel.total_outbufs_len:
+                with channel.outbuf_lock:
+                    channel._flush_some(do_close=False)  # non-blocking: what the socket takes now
 
     def close(self):
         """Stop listening and drop every connection. Idempotent."""
