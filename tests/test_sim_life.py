@@ -52,7 +52,8 @@ def _go(sim, **goal):
 
 
 def test_the_demo_starts_navigating_on_its_own_map(sim):
-    mode = _mode(sim)
+    mode = wait_for(lambda: _mode(sim)["state"] != "starting" and _mode(sim), timeout=30,
+                    message="the demo's own map to be running")
     assert (mode["mode"], mode["state"]) == ("navigation", "running")
 
 
