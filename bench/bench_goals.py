@@ -14,13 +14,18 @@ twice each in alternation so drift of the machine's load hits both alike.
 
 Run: ``.venv/bin/python bench/bench_goals.py [--goals N] [--burst N]``; ``--profile FILE``
 samples the server with py-spy (``pip install py-spy``) during the goals and writes its raw
-(collapsed) stacks to FILE. Starts its own ROS master. Prints one markdown table.
+(collapsed) stacks to FILE; ``--stages`` runs both servers under ``bench/stages.py`` and prints a
+second table: where each goal's time goes, stage by stage (medians). Starts its own ROS master.
+Prints one markdown table (two with ``--stages``).
 """
 
 import argparse
+import bisect
 import http.client
 import json
 import os
+import signal
+import statistics
 import subprocess
 import sys
 import tempfile
@@ -90,6 +95,7 @@ class Server:
             raise RuntimeError("{} did not start: exit {}".format(name, self.proc.wait()))
         self.conn = http.client.HTTPConnection(self.host, self.port, timeout=10)
         self.sent = []  # (x, monotonic time just before the request, HTTP answer ms)
+        self.trips = []  # (sent, arrived at move_base) of each goal collected
 
     def _keep_log(self, path):
         """The rest of its stderr into ``path``: what its journal would show."""
@@ -110,14 +116,22 @@ class Server:
         self.sent.append((x, started, (time.monotonic() - started) * 1000))
 
 
-def start_ours(home, env):
+def staged(args, out):
+    """``args`` (a Python script, or ``-m module``, and its arguments) under bench/stages.py writing to ``out``."""
+    return [sys.executable, os.path.join(ROOT, "bench", "stages.py"), out] + args
+
+
+def start_ours(home, env, stages):
     config = os.path.join(home, "robot.yaml")
     with open(config, "w") as f:
         f.write(OUR_CONFIG.format(waypoints=os.path.join(home, "waypoints.yaml")))
     exe = os.path.join(os.path.dirname(sys.executable), "flask-move-server")
-    args = [exe] if os.path.exists(exe) else [sys.executable, "-m", "flask_move_server"]
+    args = [exe] if os.path.exists(exe) and not stages else [sys.executable, "-m", "flask_move_server"]
+    if stages:
+        args = staged(args[1:], os.path.join(home, "stages-ours.json"))
     ours = Server("flask-move-server", args + ["--config", config, "--no-mdns"], env, "move_base",
                   os.path.join(home, "flask-move-server.log"))
+    ours.stages = os.path.join(home, "stages-ours.json") if stages else None
     wait_for(lambda: json.loads(ours.request("GET", "/health")[1]).get("move_base") == "ready", timeout=30,
              message="flask-move-server's /health to say move_base is ready")
     return ours
@@ -136,11 +150,15 @@ def drive(servers, period, count, first_x):
 
 
 def collect(server, standin):
-    """Goal latencies (ms) of every goal ``server`` sent since the last collect, and its HTTP answers."""
-    reached = [(standin.arrival(server.action, x) - sent) * 1000 for x, sent, _ in server.sent]
+    """Goal latencies (ms) of every goal ``server`` sent since the last collect, and its HTTP answers.
+
+    Each goal's (sent, arrived) times go to ``server.trips``, for ``--stages``.
+    """
+    trips = [(sent, standin.arrival(server.action, x)) for x, sent, _ in server.sent]
+    server.trips.extend(trips)
     answered = [ms for _, _, ms in server.sent]
     server.sent = []
-    return reached, answered
+    return [(arrived - sent) * 1000 for sent, arrived in trips], answered
 
 
 def cpu_seconds(pid):
@@ -156,11 +174,14 @@ def measure(servers, standin, opts):
     for server in servers:
         drive([server], 0.05, 20, 9000.0)  # warm-up: connections, caches, the first goal's set-up
         collect(server, standin)
+        server.trips = []
     cpu = [cpu_seconds(server.proc.pid) for server in servers]
     drive(servers, 0.6, opts.goals, 0.0)
     for server, before in zip(servers, cpu):
         per_goal = (cpu_seconds(server.proc.pid) - before) * 1000 / opts.goals
         rows.append(("1 every 0.6 s", server.name) + collect(server, standin) + (per_goal,))
+        server.rate_trips = {"1 every 0.6 s": server.trips}
+        server.trips = []
     x = 1000.0
     for rate in (10, 35):
         results = {server.name: ([], [], 0.0) for server in servers}
@@ -176,6 +197,8 @@ def measure(servers, standin, opts):
         for server in servers:
             reached, answered, cpu_s = results[server.name]
             rows.append(("{} per second".format(rate), server.name, reached, answered, cpu_s * 1000 / len(reached)))
+            server.rate_trips["{} per second".format(rate)] = server.trips
+            server.trips = []
     return rows
 
 
@@ -187,6 +210,60 @@ def print_table(rows):
         print("| {} | {} | {} | {:.2f} | {:.2f} | {:.2f} | {:.2f} | {:.2f} |".format(
             rate, name, len(reached), percentile(reached, 50), percentile(reached, 99), max(reached),
             percentile(answered, 50), cpu_ms))
+
+
+STAGE_COLUMNS = ("sent → read", "read → worker", "worker → route", "route → publish", "publish → socket",
+                 "socket → move_base")
+
+
+def print_stages(servers):
+    """Per rate and server, the median ms of each stage of a goal's way (records from bench/stages.py)."""
+    from bench.stages import STAGES
+
+    print("| where a goal's time goes (median ms) | server | goals | " + " | ".join(STAGE_COLUMNS) + " | total |")
+    print("|---|---|---:|" + "---:|" * (len(STAGE_COLUMNS) + 1))
+    for rate in servers[0].rate_trips:
+        for server in servers:
+            times = stage_times(server)
+            ways = [way for way in (goal_way(times, STAGES, sent, arrived) for sent, arrived in server.rate_trips[rate])
+                    if way is not None]
+            if not ways:
+                continue
+            columns = [statistics.median(column) for column in zip(*ways)]
+            cells = " | ".join("{:.3f}".format(c) for c in columns)
+            print("| {} | {} | {} | {} |".format(rate, server.name, len(ways), cells))
+
+
+def stage_times(server):
+    """Each stage's record times, sorted, from the server's stages file (written on SIGUSR1)."""
+    done = server.stages + ".done"
+    if not os.path.exists(done):
+        before = os.path.getmtime(server.stages) if os.path.exists(server.stages) else None
+        server.proc.send_signal(signal.SIGUSR1)
+        wait_for(lambda: os.path.exists(server.stages) and os.path.getmtime(server.stages) != before, timeout=10,
+                 message="{}'s stage records".format(server.name))
+        open(done, "w").close()
+    times = {}
+    with open(server.stages) as f:
+        for stage, at in json.load(f):
+            times.setdefault(stage, []).append(at)
+    return {stage: sorted(ats) for stage, ats in times.items()}
+
+
+def goal_way(times, stages, sent, arrived):
+    """ms from ``sent`` to each stage's first record after the one before, then to ``arrived``, and the total.
+
+    None when a stage has no record in between (a goal whose way was not recorded whole).
+    """
+    marks = [sent]
+    for stage in stages:
+        ats = times.get(stage, [])
+        i = bisect.bisect_left(ats, marks[-1])
+        if i == len(ats) or ats[i] > arrived:
+            return None
+        marks.append(ats[i])
+    marks.append(arrived)
+    return [(b - a) * 1000 for a, b in zip(marks, marks[1:])] + [(arrived - sent) * 1000]
 
 
 def start_profiler(pid, path):
@@ -202,6 +279,7 @@ def main(argv=None):
     parser.add_argument("--goals", type=int, default=100, help="goals to each server at one per 0.6 s")
     parser.add_argument("--burst", type=int, default=200, help="goals to each server at each burst rate")
     parser.add_argument("--profile", metavar="FILE", help="py-spy's raw stacks of the server during the goals")
+    parser.add_argument("--stages", action="store_true", help="also time each stage of a goal's way (bench/stages.py)")
     opts = parser.parse_args(argv)
 
     home = tempfile.mkdtemp(prefix="bench-goals-")
@@ -212,10 +290,13 @@ def main(argv=None):
     try:
         standin = StandIn(env, ["move_base", "bare/move_base"])
         procs.append(standin.proc)
-        ours = start_ours(home, env)
+        ours = start_ours(home, env, opts.stages)
         procs.append(ours.proc)
-        bare = Server("bare Flask + rospy", [sys.executable, os.path.join(ROOT, "bench", "bare_server.py")], env,
-                      "bare/move_base", os.path.join(home, "bare_server.log"))
+        bare_args = [os.path.join(ROOT, "bench", "bare_server.py")]
+        bare_stages = os.path.join(home, "stages-bare.json")
+        bare_command = staged(bare_args, bare_stages) if opts.stages else [sys.executable] + bare_args
+        bare = Server("bare Flask + rospy", bare_command, env, "bare/move_base", os.path.join(home, "bare_server.log"))
+        bare.stages = bare_stages if opts.stages else None
         procs.append(bare.proc)
         time.sleep(2)  # the bare publisher's connection to the stand-in's goal subscriber
         profiler = start_profiler(ours.proc.pid, opts.profile) if opts.profile else None
@@ -224,6 +305,9 @@ def main(argv=None):
             profiler.send_signal(2)
             profiler.wait(30)
         print_table(rows)
+        if opts.stages:
+            print()
+            print_stages([ours, bare])
         print("\n(the servers' stderr: {})".format(home), file=sys.stderr)
     finally:
         for proc in reversed(procs):
