@@ -183,14 +183,15 @@ class StopLaneDispatcher(ThreadedTaskDispatcher):
         self._stream_threads = set()
 
     def add_task(self, task):
-        if _is_stream(task) and self._streams is not None and self._streams.acquire(blocking=False):
+        line = _request_line(task)  # once: this runs on the event loop's thread, for every request
+        if line in STREAMS and self._streams is not None and self._streams.acquire(blocking=False):
             thread = threading.Thread(target=self._serve_stream, args=(task,), name="waitress-event-stream",
                                       daemon=True)
             with self.lock:
                 self._stream_threads.add(thread)
             thread.start()
             return
-        if not _is_urgent(task):
+        if line not in URGENT:
             super().add_task(task)  # a stream past max_streams too: the app answers it 503 at once
             return
         with self.lock:
@@ -234,14 +235,6 @@ def _request_line(channel):
         return None
     request = requests[0]
     return getattr(request, "command", None), getattr(request, "path", None)
-
-
-def _is_urgent(channel):
-    return _request_line(channel) in URGENT
-
-
-def _is_stream(channel):
-    return _request_line(channel) in STREAMS
 
 
 class RobotWSGIServer(TcpWSGIServer):

@@ -19,12 +19,14 @@ import rospy
 from actionlib import CommState, SimpleGoalState
 from actionlib_msgs.msg import GoalID, GoalStatus
 from geometry_msgs.msg import PoseStamped
-from move_base_msgs.msg import MoveBaseAction, MoveBaseGoal
+from move_base_msgs.msg import MoveBaseAction, MoveBaseActionGoal, MoveBaseGoal
 
 from flask_move_server.errors import NavigationUnavailable, RosUnavailable
 from flask_move_server.goal_endings import said_sentence
 from flask_move_server.ros.action_status import read_status_lightly
-from flask_move_server.ros.convert import pose_from_msg, pose_stamped
+from flask_move_server.ros.convert import pose_from_msg, pose_stamped, write_pose
+from flask_move_server.ros.direct import direct_publisher
+from flask_move_server.ros.goal_first import publish_goals_first
 from flask_move_server.ros.readiness import ServerReadiness
 
 log = logging.getLogger(__name__)
@@ -68,19 +70,27 @@ class Navigator:
         self._readiness = None
         self._goal_pub = None
         self._cancel_pub = None
+        self._direct = []  # action mode: the goal and cancel publishers actionlib's share
+        self._spare_message = None  # the next goal's MoveBaseGoal, built ahead
         self._released = False
         node.when_ready(self._setup)
         node.when_lost(self._master_lost)
 
     def _setup(self):
         if self._config.goal_interface == "action":
+            action = rospy.remap_name(self._config.action)  # as actionlib names its topics
+            # First, so that actionlib's goal and cancel publishers share their direct connections.
+            self._direct = [direct_publisher(action + "/goal", MoveBaseActionGoal, 10),
+                            direct_publisher(action + "/cancel", GoalID, 10)]
             client = actionlib.SimpleActionClient(self._config.action, MoveBaseAction)
             read_status_lightly(client.action_client)  # move_base's status array: only our goal's entry
+            publish_goals_first(client.action_client)
             self._readiness = ServerReadiness(client.action_client)
+            self._spare_message = MoveBaseGoal()
             self._client = client
         else:
-            self._goal_pub = rospy.Publisher(self._config.simple_goal_topic, PoseStamped, queue_size=1, latch=False)
-            self._cancel_pub = rospy.Publisher(self._config.action + "/cancel", GoalID, queue_size=1)
+            self._goal_pub = direct_publisher(self._config.simple_goal_topic, PoseStamped, 1)
+            self._cancel_pub = direct_publisher(self._config.action + "/cancel", GoalID, 1)
 
     # commands ----------------------------------------------------------------
 
@@ -96,10 +106,11 @@ class Navigator:
             if self._client is not None:
                 _settle_last_goal(self._client)
                 self._client.send_goal(
-                    _move_base_goal(goal.pose, self._frame),
+                    self._goal_message(goal.pose),
                     done_cb=lambda status, result: self._done(seq, status),
                     feedback_cb=lambda feedback: self._feedback(seq, feedback),
                 )
+                self._spare_message = MoveBaseGoal()  # the next goal's, built once this one is on its way
             else:
                 self._goal_pub.publish(pose_stamped(goal.pose, self._frame, rospy.Time.now()))
         log.info("goal %d: %s %s", seq, goal.target or "pose", goal.pose.as_dict())
@@ -187,7 +198,8 @@ class Navigator:
     def close(self):
         """Release the action client's or the goal topic's connections. Idempotent."""
         client, self._client = self._client, None
-        topics = [self._goal_pub, self._cancel_pub]
+        topics = [self._goal_pub, self._cancel_pub] + self._direct
+        self._direct = []
         if client is not None:
             ac = client.action_client
             topics += [ac.pub_goal, ac.pub_cancel, ac.status_sub, ac.result_sub, ac.feedback_sub]
@@ -197,6 +209,20 @@ class Navigator:
                 topic.unregister()
 
     # internals ---------------------------------------------------------------
+
+    def _goal_message(self, pose):
+        """The MoveBaseGoal to ``pose`` in the map frame, stamped now (``_sending`` held).
+
+        Filled in from a message built after the previous goal was sent: building one (a dozen
+        nested genpy messages) was the largest step between a ``/goto`` and its publish.
+        """
+        message, self._spare_message = self._spare_message, None
+        if message is None:
+            message = MoveBaseGoal()
+        target = message.target_pose
+        target.header.frame_id, target.header.stamp = self._frame, rospy.Time.now()
+        write_pose(target.pose, pose)
+        return message
 
     def _check_reachable(self):
         if not self._node.connected:
@@ -271,10 +297,6 @@ class Navigator:
         return None if here is None else round(here.distance_to(goal.pose), 3)
 
 
-def _move_base_goal(pose, frame):
-    goal = MoveBaseGoal()
-    goal.target_pose = pose_stamped(pose, frame, rospy.Time.now())
-    return goal
 
 
 def _settle_last_goal(client, patience=1.0):

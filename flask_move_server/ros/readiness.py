@@ -39,5 +39,9 @@ class ServerReadiness:
 
 
 def _same(evidence, known):
-    """The same server node and the very same connection lists (identity: rospy swaps, never edits)."""
-    return known is not None and evidence[0] == known[0] and all(a is b for a, b in zip(evidence[1:], known[1:]))
+    """The same server node and the very same connection lists (identity: rospy swaps, never edits).
+
+    Written out, not as a loop: it runs before every goal is published.
+    """
+    return (known is not None and evidence[0] == known[0] and evidence[1] is known[1] and evidence[2] is known[2]
+            and evidence[3] is known[3] and evidence[4] is known[4])

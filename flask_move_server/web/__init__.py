@@ -5,6 +5,7 @@ module global, so several apps (tests) can live in one process.
 """
 
 from flask import Blueprint, Flask, Response, send_from_directory
+from flask.sessions import NullSession, SessionInterface
 
 from flask_move_server.events import EventBus
 from flask_move_server.modes.manager import ModeManager
@@ -15,6 +16,37 @@ from flask_move_server.web.maps import maps_api
 from flask_move_server.web.modes import modes as modes_routes
 from flask_move_server.web.openapi import description
 from flask_move_server.web.routes import WaypointNameConverter, api
+
+
+class RobotApp(Flask):
+    """Flask, asking once per view or hook whether it is a coroutine, not on every request.
+
+    Flask's ``ensure_sync`` asks ``inspect`` about each view and ``before_request`` hook each time
+    it runs one; on a ``/goto`` that was more Python than the goal's own checks. The answer never
+    changes for a function, so it is kept.
+    """
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        self._sync_functions = {}
+
+    def ensure_sync(self, func):
+        sync = self._sync_functions.get(func)
+        if sync is None:
+            sync = self._sync_functions[func] = super().ensure_sync(func)
+        return sync
+
+
+class NoSessions(SessionInterface):
+    """The API keeps no sessions: every request gets the same empty, read-only one (Flask would build one each)."""
+
+    _none = NullSession()
+
+    def open_session(self, app, request):
+        return self._none
+
+    def save_session(self, app, session, response):
+        return None
 
 
 class UntypedResponse(Response):
@@ -38,8 +70,9 @@ def create_app(config, robot, store, token=None, events=None, modes=None, maps=N
     events = events if events is not None else EventBus()
     modes = modes if modes is not None else ModeManager(config, None)
     maps = maps if maps is not None else _folder_only_maps(config, store, events)
-    app = Flask(__name__, static_folder="static", static_url_path="/static")
+    app = RobotApp(__name__, static_folder="static", static_url_path="/static")
     app.response_class = UntypedResponse
+    app.session_interface = NoSessions()
     app.url_map.converters["waypoint"] = WaypointNameConverter
     app.url_map.merge_slashes = False  # /waypoints//a is the name "/a" (a 400), not an HTML redirect
     app.config["MAX_CONTENT_LENGTH"] = config.server.max_body_bytes

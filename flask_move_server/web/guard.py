@@ -14,6 +14,7 @@ Two checks, before the token check so they protect token-less robots too:
   send no Origin and are not affected.
 """
 
+import functools
 import ipaddress
 import json
 import re
@@ -76,15 +77,18 @@ def init_app(app, config):
     """Check every request's Host and Origin before anything else runs."""
     names = HostNames(config)
 
+    allows = functools.lru_cache(maxsize=64)(names.allows)  # a robot is called by a few names, before every request
+
     @app.before_request
     def _check_where_from():
-        host = request.headers.get("Host")
-        if host is not None and not names.allows(host):
+        environ = request.environ  # read once: this runs before every request, /goto's too
+        host = environ.get("HTTP_HOST")
+        if host is not None and not allows(host):
             raise UnknownHost(
                 "This robot does not know the name {} it was called by (the Host header), so the request is "
                 "refused: a web page can give its own name the robot's address. If the robot has that name on "
                 "your network, add it to server.allowed_hosts in its config.".format(_shown(host_name(host))))
-        problem = cross_site(request.headers, request.method)
+        problem = cross_site(environ, environ.get("REQUEST_METHOD", "GET").upper())
         if problem:
             raise ForbiddenOrigin(
                 "Requests from other web pages are refused ({}), so a page you visit cannot drive the robot. "
@@ -92,13 +96,13 @@ def init_app(app, config):
         return None
 
 
-def cross_site(headers, method="GET"):
-    """Why a request with these headers comes from another site's page (a short phrase), or None."""
-    origin = headers.get("Origin")
-    if origin is not None and not _same_origin(origin, headers.get("Host")):
+def cross_site(environ, method="GET"):
+    """Why a request with this WSGI ``environ`` comes from another site's page (a short phrase), or None."""
+    origin = environ.get("HTTP_ORIGIN")
+    if origin is not None and not _same_origin(origin, environ.get("HTTP_HOST")):
         return "Origin: {}{}".format(_shown(origin), ", a sandboxed page or a file" if origin == "null" else "")
-    fetch_site = headers.get("Sec-Fetch-Site", "").lower()
-    navigating = headers.get("Sec-Fetch-Mode", "").lower() == "navigate" and method in ("GET", "HEAD")
+    fetch_site = environ.get("HTTP_SEC_FETCH_SITE", "").lower()
+    navigating = environ.get("HTTP_SEC_FETCH_MODE", "").lower() == "navigate" and method in ("GET", "HEAD")
     if fetch_site == "cross-site" and not navigating:  # following a link to the page is fine; a form post is not
         return "Sec-Fetch-Site: cross-site"
     return None

@@ -15,6 +15,7 @@ from flask_move_server.web.body import json_object, number, text
 api = Blueprint("api", __name__)
 
 GOTO_FIELDS = ("name", "x", "y", "yaw", "wait")
+POSE_FIELDS = ("x", "y", "yaw")
 
 
 def _robot():
@@ -44,12 +45,13 @@ def goto():
 
 
 def _goal_from(data):
+    given_pose = not data.keys().isdisjoint(POSE_FIELDS)
     if "name" in data:
-        if any(k in data for k in ("x", "y", "yaw")):
+        if given_pose:
             raise BadRequest("Give either a waypoint 'name' or 'x', 'y', 'yaw', not both.")
         wp = _store().get(text(data, "name"))
         return Goal(Pose2D(wp.x, wp.y, wp.yaw), wp.name)
-    if not any(k in data for k in ("x", "y", "yaw")):
+    if not given_pose:
         raise BadRequest('Say where to go: {"name": "kitchen"} or {"x": 1.0, "y": 2.0, "yaw": 0.0}.')
     yaw = check_coordinate("yaw", number(data, "yaw"), YAW_LIMIT) if "yaw" in data else 0.0
     return Goal(Pose2D(check_coordinate("x", number(data, "x")), check_coordinate("y", number(data, "y")), yaw))
