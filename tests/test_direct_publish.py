@@ -23,6 +23,16 @@ class StalledReader:
         self.release = threading.Event()
         self.sub = rospy.Subscriber(topic, String, self._on_message, queue_size=None)
 
+    def stall(self, publisher):
+        """Connect to ``publisher``, get its message 0 and stop reading there."""
+        wait_for(lambda: publisher.get_num_connections() == 1, message="the subscriber to connect")
+        publisher.publish(String(_message(0)))
+        wait_for(self.stalled.is_set, message="the subscriber's reader to stall")
+
+    def close(self):
+        self.release.set()
+        self.sub.unregister()
+
     def _on_message(self, msg):
         if not self.stalled.is_set():
             self.stalled.set()
@@ -44,10 +54,7 @@ def publisher(ros_node, unique_name):
 def test_a_subscriber_that_stops_reading_never_holds_up_the_publisher_nor_garbles_what_it_gets(publisher):
     reader = StalledReader(publisher.resolved_name)
     try:
-        wait_for(lambda: publisher.get_num_connections() == 1, message="the subscriber to connect")
-        publisher.publish(String(_message(0)))
-        wait_for(reader.stalled.is_set, message="the subscriber's reader to stall")
-
+        reader.stall(publisher)
         count = 60  # 15 MB: far more than the socket's buffers hold
         done = threading.Event()
 
@@ -62,8 +69,7 @@ def test_a_subscriber_that_stops_reading_never_holds_up_the_publisher_nor_garble
         wait_for(lambda: reader.received and reader.received[-1].startswith("{:05d}:".format(count)), timeout=20,
                  message="the last message to arrive")
     finally:
-        reader.release.set()
-        reader.sub.unregister()
+        reader.close()
 
     numbers = [int(text[:5]) for text in reader.received]
     assert numbers[0] == 0 and numbers[-1] == count
@@ -75,15 +81,12 @@ def test_a_subscriber_that_stops_reading_never_holds_up_the_publisher_nor_garble
 def test_a_subscriber_that_goes_away_while_stalled_leaves_the_publisher_working(publisher):
     gone = StalledReader(publisher.resolved_name)
     try:
-        wait_for(lambda: publisher.get_num_connections() == 1, message="the subscriber to connect")
-        publisher.publish(String(_message(0)))
-        wait_for(gone.stalled.is_set, message="the subscriber to stall")
+        gone.stall(publisher)
         for i in range(1, 30):  # fills the socket: the rest waits for the writer
             publisher.publish(String(_message(i)))
         gone.sub.unregister()
     finally:
-        gone.release.set()
-        gone.sub.unregister()
+        gone.close()
     wait_for(lambda: publisher.get_num_connections() == 0, message="the gone subscriber's connection to close")
 
     later = []
