@@ -31,6 +31,8 @@ class StreamingSim(ServerProcess):
                          "--waypoints", str(waypoints), env=env, start_timeout=60)
         wait_for(lambda: self.get("/health").json().get("move_base") == "ready", timeout=30,
                  message="move_base stand-in ready")
+        wait_for(lambda: self.get("/status").json().get("pose") is not None, timeout=30,
+                 message="the robot's pose known")  # on a loaded machine tf can come after move_base
 
     def motors(self):
         motors = self.get("/status").json()["motors"]
@@ -55,8 +57,9 @@ def _moved_from(start, distance):
 
 def test_a_goal_is_heard_as_status_and_pose_events(sim):
     with EventReader(sim.url, kinds=("pose", "status", "estop")) as reader:
-        primed = dict(reader.next() for _ in range(3))  # the latest of each kind the robot tells
-        assert set(primed) == {"pose", "status", "estop"}
+        primed = {}  # the latest of each kind the robot tells (its 10 Hz reporter may owe the pose a moment)
+        reader.until(lambda kind, data: primed.update({kind: data}) or (
+            set(primed) == {"pose", "status", "estop"} and primed["pose"] is not None), timeout=5)
         start = primed["pose"]
         assert start["frame"] == "map" and primed["estop"]["latched"] is False
         assert sim.post("/goto", {"name": "kitchen"}).status_code == 202
