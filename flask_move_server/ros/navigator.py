@@ -213,8 +213,9 @@ class Navigator:
     def _goal_message(self, pose):
         """The MoveBaseGoal to ``pose`` in the map frame, stamped now (``_sending`` held).
 
-        Filled in from a message built after the previous goal was sent: building one (a dozen
-        nested genpy messages) was the largest step between a ``/goto`` and its publish.
+        Filled in from a message built after the previous goal was sent: building it (seven nested
+        genpy objects, fourteen as it was done before) was the largest step between a ``/goto`` and
+        its publish.
         """
         message, self._spare_message = self._spare_message, None
         if message is None:
@@ -295,8 +296,6 @@ class Navigator:
         reading = reading or self._pose.current()
         here = reading.pose if reading is not None else self._feedback_pose
         return None if here is None else round(here.distance_to(goal.pose), 3)
-
-
 
 
 def _settle_last_goal(client, patience=1.0):
