@@ -249,6 +249,11 @@ def test_a_saved_maps_image_is_a_png_with_an_etag_and_a_304_when_unchanged(clien
     assert r.headers["Cache-Control"] == "no-cache" and r.headers["ETag"]
     again = client.get("/maps/flat/image", headers={"If-None-Match": r.headers["ETag"]})
     assert again.status_code == 304 and again.data == b""
+    # A cache that marks the tag weak (some proxies do) still gets the 304: If-None-Match compares weakly.
+    weak = client.get("/maps/flat/image", headers={"If-None-Match": "W/" + r.headers["ETag"]})
+    assert weak.status_code == 304 and weak.data == b""
+    other = client.get("/maps/flat/image", headers={"If-None-Match": 'W/"0-0", "elsewhere"'})
+    assert other.status_code == 200 and other.data == r.data
 
 
 def test_the_live_map_says_where_its_crop_is_and_a_304_renders_nothing(client, source):

@@ -26,7 +26,7 @@ def _maps():
 
 def _png(etag, make_image):
     """The image answer: 304 when the client has ``etag`` already (nothing rendered), else the PNG."""
-    if request.if_none_match.contains(etag):
+    if request.if_none_match.contains_weak(etag):  # If-None-Match compares weakly (RFC 9110)
         response = Response(status=304)
     else:
         response = Response(make_image().png, mimetype="image/png")
