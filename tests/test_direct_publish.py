@@ -1,5 +1,6 @@
 """Goals and cancels written from the request's thread (ros/direct.py), with a real master and rospy."""
 
+import socket
 import threading
 
 import actionlib
@@ -123,3 +124,39 @@ def test_actionlibs_goal_publisher_made_afterwards_shares_the_direct_connections
                       client.action_client.result_sub, client.action_client.feedback_sub] + ours:
             topic.unregister()
         move_base.shutdown()
+
+
+def _writers():
+    return [t for t in threading.enumerate() if t.name == "direct-writer"]
+
+
+def test_a_subscriber_that_keeps_up_costs_no_writer_thread(publisher):
+    got = []
+    sub = rospy.Subscriber(publisher.resolved_name, String, lambda m: got.append(m.data))
+    try:
+        wait_for(lambda: publisher.get_num_connections() == 1, message="the subscriber to connect")
+        for i in range(20):
+            publisher.publish(String("goal {}".format(i)))
+        wait_for(lambda: len(got) == 20, message="the subscriber to get every message")
+        assert _writers() == [], "a writer thread was started for a socket that took every message"
+    finally:
+        sub.unregister()
+
+
+def test_a_subscriber_connecting_as_the_topic_closes_is_hung_up_on(ros_node, unique_name):
+    from rospy.impl.tcpros_base import TCPROSTransport
+    from rospy.impl.tcpros_pubsub import TCPROSPub
+
+    pub = direct_publisher("/{}/goal".format(unique_name), String, 5)
+    impl = pub.impl
+    pub.unregister()  # the last publisher of the topic: rospy closes the topic
+    ours, subscriber_end = socket.socketpair()
+    try:
+        transport = TCPROSTransport(TCPROSPub(impl.resolved_name, String), impl.resolved_name)
+        transport.set_socket(ours, "/late_subscriber")
+        assert impl.add_connection(transport) is False
+        subscriber_end.settimeout(5)
+        assert subscriber_end.recv(1) == b"", "the late subscriber's socket was left open"
+        assert _writers() == []
+    finally:
+        subscriber_end.close()

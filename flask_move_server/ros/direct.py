@@ -52,7 +52,11 @@ class _DirectPublisherImpl(_PublisherImpl):
     def add_connection(self, c):
         if not isinstance(c, DirectConnection):
             c = DirectConnection(c, self.direct_queue_size)
-        return super().add_connection(c)
+        try:
+            return not self.closed and super().add_connection(c)
+        finally:
+            if self.closed:  # closed before or as the subscriber connected: rospy would leave its socket open
+                c.close()
 
 
 class DirectConnection:
@@ -60,7 +64,9 @@ class DirectConnection:
 
     Behaves towards rospy as its ``QueuedConnection`` does (the transport's attributes, an error of
     the writer raised by the next write). ``queue_size``: messages waiting for the writer at most
-    (0: no bound); past it the oldest waiting whole message is dropped.
+    (0: no bound); past it the oldest waiting whole message is dropped. The writer thread is started
+    by the first message that has to wait and ends when the connection closes: a subscriber that
+    always keeps up costs no thread.
     """
 
     def __init__(self, connection, queue_size):
@@ -72,8 +78,8 @@ class DirectConnection:
         self._writing = False  # the writer is sending a message outside the lock
         self._head_started = False  # the first waiting message is the rest of one partly sent: never dropped
         self._error = None
+        self._writer = None  # started by the first message that has to wait for it
         connection.set_cleanup_callback(self._closed)
-        threading.Thread(target=self._run, name="direct-writer", daemon=True).start()
 
     def __getattr__(self, name):
         if name.startswith("__"):
@@ -117,6 +123,9 @@ class DirectConnection:
             if len(self._waiting) > oldest_whole:
                 del self._waiting[oldest_whole]
         self._waiting.append(data)
+        if self._writer is None:
+            self._writer = threading.Thread(target=self._run, name="direct-writer", daemon=True)
+            self._writer.start()
         self._wake.notify()
 
     def _closed(self, _connection):
