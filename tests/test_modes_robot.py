@@ -14,7 +14,7 @@ import signal
 import pytest
 
 from flask_move_server.maps import mapfile
-from tests.conftest import ServerProcess, free_port, start_master, stop_process, wait_for
+from tests.conftest import ServerProcess, default_sigint, free_port, start_master, stop_process, wait_for
 from tests.test_launch import ros_env
 from tests.test_stack_launched import stack_processes
 
@@ -195,7 +195,8 @@ def test_a_killed_server_leaves_no_stack_and_the_next_one_comes_back_mapping(rob
     # A leftover PDEATHSIG could not reach (a node that was forking): carries the dead server's marker.
     leftover = subprocess.Popen(["sleep", "600"], env=dict(
         os.environ, ROS_MASTER_URI=robot.master_uri, **{
-            children.MARKER: children.marker_value(first.proc.pid, 1)}))
+            children.MARKER: children.marker_value(first.proc.pid, 1)}),
+        preexec_fn=default_sigint)  # SIGINT ends it, even when this pytest ignores SIGINT
     try:
         second = robot()
         mode = settled(second)

@@ -23,7 +23,7 @@ from flask_move_server.errors import StackFailed
 from flask_move_server.maps import mapfile
 from flask_move_server.modes import child, readiness
 from flask_move_server.modes.launched import LaunchedStack
-from tests.conftest import ROOT, wait_for
+from tests.conftest import ROOT, default_sigint, wait_for
 from tests.test_launch import STUBS, ros_env
 
 # Each cycle starts three stacks (~2-5 s each on a loaded 2-core machine); STACK_CYCLES=20 for the long run.
@@ -276,8 +276,10 @@ def test_a_stack_left_by_a_dead_server_is_stopped_by_the_next_one():
 
     gone = subprocess.Popen(["true"])
     gone.wait()  # a server pid that no longer exists
-    orphan = subprocess.Popen(["sleep", "600"], env=dict(os.environ, **{children.MARKER: "{}:1".format(gone.pid)}))
-    ours = subprocess.Popen(["sleep", "600"], env=dict(os.environ, **{children.MARKER: "{}:999".format(os.getpid())}))
+    orphan = subprocess.Popen(["sleep", "600"], env=dict(os.environ, **{children.MARKER: "{}:1".format(gone.pid)}),
+                              preexec_fn=default_sigint)  # SIGINT ends it, even when this pytest ignores SIGINT
+    ours = subprocess.Popen(["sleep", "600"], env=dict(os.environ, **{children.MARKER: "{}:999".format(os.getpid())}),
+                            preexec_fn=default_sigint)
     try:
         LaunchedStack(ModesConfig()).start("idle")
         assert orphan.wait(5) == -signal.SIGINT
