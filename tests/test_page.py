@@ -10,6 +10,7 @@ attributes (where the robot is drawn, where the map image is), never from test-o
 import math
 
 import pytest
+import requests
 
 pytest.importorskip("playwright", reason="playwright is not installed (pip install -e '.[test]'; Debian lacks it)")
 
@@ -256,10 +257,35 @@ def test_stop_and_cancel_end_the_goal(sim, page, button):
     page.locator("#tabs button[data-tab=places]").tap()
     page.locator("#places li[data-name=kitchen] button.go").tap()
     page.wait_for_function("document.getElementById('nav').dataset.state === 'active'", timeout=10000)
-    assert "on its way to kitchen" in page.inner_text("#nav-text")
+    assert page.inner_text("#nav-text") == "going to kitchen"
     page.locator(button).tap()
     wait_for(lambda: sim.status()["navigation"]["state"] == "canceled", timeout=10, message="the goal canceled")
     page.wait_for_function("document.getElementById('nav').dataset.state === 'canceled'", timeout=5000)
+
+
+def test_a_long_place_name_is_cut_on_a_phone_but_never_the_distance_left(sim, page):
+    at_rest(sim)
+    name = "the far end of the kitchen by the window"
+    x, y, yaw = sim.waypoint("kitchen")
+    assert requests.put(sim.url + "/waypoints/" + name, json={"x": x, "y": y, "yaw": yaw},
+                        headers=sim.headers(), timeout=10).status_code == 201
+    try:
+        page.locator("#tabs button[data-tab=places]").tap()
+        page.locator('#places li[data-name="{}"] button.go'.format(name)).tap()
+        page.wait_for_function("/^\\d+\\.\\d m$/.test(document.getElementById('nav-distance').textContent)",
+                               timeout=10000)
+        line = page.evaluate("""() => {
+            const box = (id) => document.getElementById(id).getBoundingClientRect();
+            const text = document.getElementById('nav-text');
+            return {text: box('nav-text'), distance: box('nav-distance'), cancel: box('cancel'),
+                    width: window.innerWidth, cut: text.scrollWidth > text.clientWidth};
+        }""")
+        assert line["cut"], "the name fits: the test no longer shows what it is about"
+        assert line["text"]["right"] <= line["distance"]["left"], line
+        assert line["distance"]["right"] <= line["cancel"]["left"] <= line["cancel"]["right"] <= line["width"], line
+    finally:
+        at_rest(sim)
+        requests.delete(sim.url + "/waypoints/" + name, headers=sim.headers(), timeout=10)
 
 
 def test_marking_places_renaming_and_deleting_them(sim, page, browser):

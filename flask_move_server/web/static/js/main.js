@@ -25,14 +25,16 @@ const buzz = () => { if (navigator.vibrate) navigator.vibrate(30); };  // a felt
 function showNavigation(nav) {
   const box = $("nav"), state = nav.state;
   const where = nav.target || (nav.goal ? "x " + nav.goal.x.toFixed(1) + ", y " + nav.goal.y.toFixed(1) : "the goal");
-  let text = "no goal: tap a place, or press and drag on the map";
+  let text = "no goal: tap a place, or press and drag on the map", distance = "";
   if (state === "canceling") text = "stopping…";
   else if (state === "active" || state === "pending") {
-    text = "on its way to " + where + (nav.distance_remaining != null ? " – " + nav.distance_remaining.toFixed(1) + " m" : "");
+    text = "going to " + where;  // short enough for most names on a phone; a longer one is cut, never the distance
+    if (nav.distance_remaining != null) distance = nav.distance_remaining.toFixed(1) + " m";
   } else if (state === "succeeded") text = "arrived at " + where;
   else if (state === "aborted" || state === "rejected") text = "failed: " + (nav.message || "move_base gave up on " + where);
   else if (state === "canceled") text = "cancelled";
   $("nav-text").textContent = text;
+  $("nav-distance").textContent = distance;
   box.dataset.state = state;
   box.dataset.target = nav.target || "";
   $("cancel").hidden = !(state === "active" || state === "pending");
