@@ -73,6 +73,7 @@ class EventBus:
         self._listeners = {}
         self._subscriptions = []
         self._latest = {}
+        self._on_subscribe = []
         self._seq = itertools.count(1)
         self.closed = False
 
@@ -96,16 +97,30 @@ class EventBus:
         with self._lock:
             self._listeners.setdefault(kind, []).append(callback)
 
+    def when_subscribed(self, callback):
+        """Call ``callback()`` in a new subscriber's thread, before it is primed: a part that tells its
+        state only while someone reads (the reporter) brings it up to date there."""
+        with self._lock:
+            self._on_subscribe.append(callback)
+
     def subscribe(self, kinds=None, replay=True):
         """A new subscription to ``kinds`` (None: all); with ``replay``, primed with the latest of each."""
         sub = Subscription(self, kinds)
         with self._lock:
             sub.closed = self.closed  # the server is stopping: a late reader gets nothing more
             self._subscriptions.append(sub)
-            latest = [(k, d) for k, d in self._latest.items() if sub.wants(k)] if replay else []
-            seq = next(self._seq)
-        for kind, data in latest:
-            sub.offer(kind, seq, data)
+            hooks = list(self._on_subscribe)
+        for callback in hooks:
+            try:
+                callback()
+            except Exception:  # a part's bug must not cost the reader its stream
+                log.exception("bringing events up to date for a new subscriber failed")
+        if replay:
+            with self._lock:
+                latest = [(k, d) for k, d in self._latest.items() if sub.wants(k)]
+                seq = next(self._seq)
+            for kind, data in latest:  # the newest of each kind, even if a hook's event reached sub first
+                sub.offer(kind, seq, data)
         return sub
 
     def latest(self, kind):

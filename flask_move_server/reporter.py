@@ -14,6 +14,9 @@ publishes, on the :class:`~flask_move_server.events.EventBus`:
 
 Sampling instead of hooking every part keeps the parts unaware of the bus, and costs one
 ``robot.status()`` per tick (a tf lookup and a few locks; docs/performance.md has the CPU).
+Only while someone reads the events: with no subscription the thread sleeps, and a new
+subscriber's first sample is taken in its own thread before its stream is primed, so what it
+is shown first is the robot now, not when the last page closed.
 Pure: imports neither rospy nor Flask; what it calls may.
 """
 
@@ -46,10 +49,12 @@ class Reporter:
         self._lock = threading.Lock()  # one sample at a time
         self._estop_lock = threading.Lock()  # the e-stop read and told in one step (thread and callback)
         self._stop = threading.Event()
+        self._reader_came = threading.Event()  # wakes the thread sleeping while nobody reads
         self._thread = None
         estop = getattr(robot, "estop", None)
         if estop is not None:
             estop.when_engaged(lambda source: self._tell_estop())
+        events.when_subscribed(self._bring_up_to_date)
 
     def start(self):
         """Start sampling (a daemon thread); returns self."""
@@ -60,7 +65,13 @@ class Reporter:
 
     def _run(self):
         failing = False
-        while not self._stop.wait(self._period):
+        while not self._stop.is_set():
+            if not self._events.subscribers:
+                self._reader_came.wait()  # nobody reads: nothing to tell until a subscriber (or close) wakes us
+                self._reader_came.clear()
+                continue
+            if self._stop.wait(self._period):
+                return
             try:
                 self.sample()
             except Exception:  # a part's bug must not end the page's live view, nor flood the log
@@ -72,10 +83,16 @@ class Reporter:
                     log.info("sampling the robot for events works again")
                 failing = False
 
+    def _bring_up_to_date(self):
+        """A new subscriber (in its thread, before its stream is primed): sample now, and wake the thread."""
+        self._reader_came.set()
+        if not self._stop.is_set():
+            self.sample()
+
     def sample(self):
         """Read the robot once and publish what changed since the last sample."""
-        status = self._robot.status()
-        with self._lock:
+        with self._lock:  # read and told as one step: a sample never tells an older reading after a newer one
+            status = self._robot.status()
             self._tell_pose(status.get("pose"))
             self._tell_status({part: status.get(part) for part in STATUS_PARTS})
         self._tell_estop()
@@ -107,6 +124,7 @@ class Reporter:
     def close(self):
         """Stop sampling. Idempotent."""
         self._stop.set()
+        self._reader_came.set()
         if self._thread is not None and self._thread is not threading.current_thread():
             self._thread.join(timeout=2)
 

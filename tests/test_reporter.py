@@ -181,3 +181,63 @@ def test_an_estop_pressed_during_a_sample_is_never_told_as_released_afterwards()
     clock.now += 0.1
     reporter.sample()
     assert reporter._events.latest("estop")["latched"] is True
+
+
+class CountingRobot(MovingRobot):
+    samples = 0
+
+    def status(self):
+        self.samples += 1
+        return super().status()
+
+
+def _settle(seconds=0.3):
+    import time
+
+    time.sleep(seconds)  # at rate 50, fifteen samples' time
+
+
+def test_nobody_reading_means_no_sampling_and_a_new_reader_is_primed_with_the_robot_now():
+    robot = CountingRobot()
+    bus = EventBus()
+    reporter = Reporter(robot, bus, rate=50).start()
+    try:
+        _settle()
+        assert robot.samples == 0, "the robot was sampled with nobody reading the events"
+
+        robot.where["x"] = 2.5  # the robot moved while no page was open
+        sub = bus.subscribe()
+        assert robot.samples == 1, "a new reader's stream was primed without reading the robot"
+        primed = dict(_events(sub))
+        assert primed["pose"]["x"] == 2.5
+
+        robot.where["x"] = 3.0
+        assert _next_pose(sub)["x"] == 3.0, "the move was not told while someone reads"
+
+        sub.close()
+        _settle()
+        after_close = robot.samples
+        _settle()
+        assert robot.samples == after_close, "sampling went on after the last reader left"
+    finally:
+        reporter.close()
+
+
+def _events(sub):
+    events = []
+    event = sub.next(0)
+    while event is not None:
+        events.append(event)
+        event = sub.next(0)
+    return events
+
+
+def _next_pose(sub, timeout=5):
+    import time
+
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        event = sub.next(0.1)
+        if event is not None and event[0] == "pose":
+            return event[1]
+    return None
