@@ -287,11 +287,17 @@ class ConnectionPolicy:
         self.shed = 0
 
 
-class QueueDepthSummary(logging.Filter):
-    """Turns waitress's per-request ``Task queue depth`` warnings into one summary per interval."""
+class QueueDepthSummary:
+    """The dispatcher's ``queue_logger``: waitress's per-request ``Task queue depth`` warning is
+    counted, and one summary per interval goes to the real ``waitress.queue`` logger.
 
-    def __init__(self, interval=QUEUE_SUMMARY_INTERVAL, clock=time.monotonic):
-        super().__init__()
+    Counting, not filtering: a filtered warning still builds its log record first, and under a
+    burst of requests that was 8 % of the server's Python time (``py-spy --gil``). Anything else
+    waitress may ask of its logger goes to the real one.
+    """
+
+    def __init__(self, logger, interval=QUEUE_SUMMARY_INTERVAL, clock=time.monotonic):
+        self._logger = logger
         self.interval = interval
         self._clock = clock
         self._lock = threading.Lock()
@@ -299,23 +305,26 @@ class QueueDepthSummary(logging.Filter):
         self._window_start = None
         self._next = None
 
-    def filter(self, record):
-        if not str(record.msg).startswith("Task queue depth"):
-            return True
+    def __getattr__(self, name):
+        return getattr(self._logger, name)
+
+    def warning(self, msg, *args, **kwargs):
+        if not str(msg).startswith("Task queue depth"):
+            self._logger.warning(msg, *args, **kwargs)
+            return
         now = self._clock()
-        depth = record.args[0] if record.args else 0
         with self._lock:
             if self._window_start is None:
                 self._window_start = self._next = now
             self._count += 1
-            self._deepest = max(self._deepest, depth)
+            self._deepest = max(self._deepest, args[0] if args else 0)
             if now < self._next:
-                return False
-            record.msg = "%d request(s) waited for a free worker thread in the last %.0f s (deepest queue: %d)"
-            record.args = (self._count, max(now - self._window_start, 0.0), self._deepest)
+                return
+            summary = (self._count, max(now - self._window_start, 0.0), self._deepest)
             self._count = self._deepest = 0
             self._window_start, self._next = now, now + self.interval
-            return True
+        self._logger.warning("%d request(s) waited for a free worker thread in the last %.0f s (deepest queue: %d)",
+                             *summary)
 
 
 class HttpServer:
@@ -328,11 +337,10 @@ class HttpServer:
         self._map = {}
         self.dispatcher = StopLaneDispatcher(server_config.max_streams)
         self.dispatcher.set_thread_count(self.adj.threads)
+        self.dispatcher.queue_logger = QueueDepthSummary(logging.getLogger(QUEUE_LOGGER))
         self._servers = [self._listen(app, sockinfo, server_config) for sockinfo in self.adj.listen]
         self.effective_host = self._servers[0].effective_host
         self.effective_port = self._servers[0].effective_port
-        self._queue_filter = QueueDepthSummary()
-        logging.getLogger(QUEUE_LOGGER).addFilter(self._queue_filter)
         self._closed = False
 
     def _listen(self, app, sockinfo, server_config):
@@ -369,7 +377,6 @@ class HttpServer:
         if self._closed:
             return
         self._closed = True
-        logging.getLogger(QUEUE_LOGGER).removeFilter(self._queue_filter)
         for channel in list(self._map.values()):
             if isinstance(channel, RobotChannel):
                 channel.close()
