@@ -288,6 +288,19 @@ def test_a_long_place_name_is_cut_on_a_phone_but_never_the_distance_left(sim, pa
         requests.delete(sim.url + "/waypoints/" + name, headers=sim.headers(), timeout=10)
 
 
+def test_a_waypoints_reload_that_changes_nothing_leaves_the_rows_a_finger_may_be_on(sim, page):
+    page.locator("#tabs button[data-tab=places]").tap()
+    page.evaluate("() => { window.kitchenRow = document.querySelector('#places li[data-name=kitchen]'); }")
+    log = RequestLog(page)
+    x, y, yaw = sim.waypoint("kitchen")
+    assert requests.put(sim.url + "/waypoints/kitchen", json={"x": x, "y": y, "yaw": yaw},
+                        headers=sim.headers(), timeout=10).status_code == 200  # the same place: an event, no change
+    wait_for(lambda: log.calls("GET", "/waypoints"), message="the page to reload the waypoints on the event")
+    log.calls("GET", "/waypoints")[-1].response()  # the answer came
+    page.wait_for_timeout(100)  # and the page has drawn it, or not
+    assert page.evaluate("() => window.kitchenRow.isConnected"), "the rows were rebuilt though nothing changed"
+
+
 def test_marking_places_renaming_and_deleting_them(sim, page, browser):
     at_rest(sim)
     page.locator("#tabs button[data-tab=places]").tap()

@@ -90,11 +90,15 @@ async function loadMap(tries = 3) {
 
 
 let waypointLoads = 0;  // answers can cross (a change, its event, our own reload): the newest request wins
+let shownWaypoints = null;  // the list as drawn, as JSON
 
 export async function loadWaypoints() {
   const mine = ++waypointLoads;
   const data = await api("GET", "/waypoints");
   if (mine !== waypointLoads) return;
+  const shown = JSON.stringify(data.waypoints);
+  if (shown === shownWaypoints) return;  // unchanged: the rows stay, so a tap landing on one is not lost
+  shownWaypoints = shown;
   map.setWaypoints(data.waypoints);
   const list = $("places");
   list.replaceChildren(...data.waypoints.map(placeRow));
