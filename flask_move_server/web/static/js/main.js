@@ -25,7 +25,7 @@ const buzz = () => { if (navigator.vibrate) navigator.vibrate(30); };  // a felt
 function showNavigation(nav) {
   const box = $("nav"), state = nav.state;
   const where = nav.target || (nav.goal ? "x " + nav.goal.x.toFixed(1) + ", y " + nav.goal.y.toFixed(1) : "the goal");
-  let text = "no goal: tap a place, or press and drag on the map", distance = "";
+  let text = "tap a place, or drag on the map", distance = "";
   if (state === "canceling") text = "stopping…";
   else if (state === "active" || state === "pending") {
     text = "going to " + where;  // short enough for most names on a phone; a longer one is cut, never the distance
