@@ -19,9 +19,11 @@ import logging
 import threading
 import time
 
+from flask_move_server import ast_guard
 from flask_move_server.ros import master
 
 log = logging.getLogger(__name__)
+ast_guard.serialise_ast_parse()  # rospy's threads format tracebacks while an app may be parsing routes
 
 WAITING, CONNECTED, LOST, NEW_MASTER, CLOSED = "waiting", "connected", "lost", "new_master", "closed"
 DEGRADED = "degraded"  # connected, but a part's set-up failed (see RosNode.failed_parts)

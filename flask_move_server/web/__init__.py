@@ -7,6 +7,7 @@ module global, so several apps (tests) can live in one process.
 from flask import Blueprint, Flask, Response, send_from_directory
 from flask.sessions import NullSession, SessionInterface
 
+from flask_move_server import ast_guard
 from flask_move_server.events import EventBus
 from flask_move_server.modes.manager import ModeManager
 from flask_move_server.web import auth, error_handlers, guard
@@ -16,6 +17,8 @@ from flask_move_server.web.maps import maps_api
 from flask_move_server.web.modes import modes as modes_routes
 from flask_move_server.web.openapi import description
 from flask_move_server.web.routes import WaypointNameConverter, api
+
+ast_guard.serialise_ast_parse()  # werkzeug parses each route while ROS threads may format tracebacks
 
 
 class RobotApp(Flask):
