@@ -14,7 +14,7 @@ import pytest
 import requests
 
 from flask_move_server.events import EventBus
-from flask_move_server.http_server import STREAM_BACKLOG
+from flask_move_server.http_connection import STREAM_BACKLOG
 from flask_move_server.web import create_app
 from flask_move_server.web.events import StreamGate
 from tests.conftest import hardened, wait_for
