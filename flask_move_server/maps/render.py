@@ -21,6 +21,7 @@ import zlib
 from collections import OrderedDict
 from dataclasses import dataclass
 
+from flask_move_server.geometry import Pose2D, compose
 from flask_move_server.maps.mapfile import UNKNOWN_PIXEL, cells_as_bytes, pixel_table
 
 UNKNOWN_CELL = b"\xff"  # -1 as an int8 byte
@@ -93,15 +94,10 @@ def render(grid, margin=1.0, version=None):
     crop_width = col1 - col0 + 1
     rows = (cells[row * width + col0:row * width + col1 + 1] for row in range(row1, row0 - 1, -1))
     pixels = b"".join(rows).translate(_PIXELS)
-    x, y = _corner(grid.origin_x, grid.origin_y, yaw, col0 * resolution, row0 * resolution)
+    corner = compose(Pose2D(grid.origin_x, grid.origin_y, yaw), Pose2D(col0 * resolution, row0 * resolution, 0.0))
+    x, y = corner.x, corner.y
     png = encode_png(crop_width, row1 - row0 + 1, pixels)
     return MapImage(png, crop_width, row1 - row0 + 1, resolution, x, y, yaw, False, version)
-
-
-def _corner(origin_x, origin_y, yaw, dx, dy):
-    """The map-frame point ``(dx, dy)`` metres from the grid's origin, along the grid's axes."""
-    cos, sin = math.cos(yaw), math.sin(yaw)
-    return origin_x + cos * dx - sin * dy, origin_y + sin * dx + cos * dy
 
 
 def encode_png(width, height, pixels, level=6):

@@ -2,7 +2,8 @@
 
 The server's navigator and pose tracker, the base controller, the simulated
 world and move_base, and the recorder all meet the same few messages
-(geometry_msgs Pose, PoseStamped, Transform, TransformStamped, Twist). A
+(geometry_msgs Pose, PoseStamped, Transform, TransformStamped, Twist; the sim's
+stand-ins for gmapping and map_server, a nav_msgs/OccupancyGrid). A
 planar pose keeps x, y and the rotation about z; z, roll and pitch are zero
 on the way out and ignored on the way in. The maths itself is in
 :mod:`flask_move_server.geometry`.
@@ -10,6 +11,7 @@ on the way out and ignored on the way in. The maths itself is in
 
 import tf2_ros
 from geometry_msgs.msg import PoseStamped, TransformStamped, Twist
+from nav_msgs.msg import OccupancyGrid
 
 from flask_move_server.geometry import Pose2D, quaternion_to_yaw, yaw_to_quaternion
 
@@ -60,4 +62,19 @@ def twist(linear, angular):
     """A geometry_msgs/Twist for a planar base: ``linear`` m/s along x, ``angular`` rad/s about z."""
     msg = Twist()
     msg.linear.x, msg.angular.z = linear, angular
+    return msg
+
+
+def occupancy_grid(frame, stamp, resolution, width, height, origin_x, origin_y, data):
+    """A nav_msgs/OccupancyGrid of ``data`` (row-major cells, -1 unknown, 0..100), its origin unrotated."""
+    msg = OccupancyGrid()
+    msg.header.frame_id = frame
+    msg.header.stamp = stamp
+    info = msg.info
+    info.map_load_time = stamp
+    info.resolution = resolution
+    info.width, info.height = width, height
+    info.origin.position.x, info.origin.position.y = origin_x, origin_y
+    info.origin.orientation.w = 1.0
+    msg.data = data
     return msg

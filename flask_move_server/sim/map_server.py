@@ -12,6 +12,8 @@ import threading
 import rospy
 from nav_msgs.msg import MapMetaData, OccupancyGrid
 
+from flask_move_server.ros import convert
+
 log = logging.getLogger(__name__)
 
 
@@ -50,14 +52,5 @@ class MapServerStandIn:
 
 def occupancy_grid_message(grid, frame):
     """The map as a nav_msgs/OccupancyGrid (cell values clamped to -1..100)."""
-    msg = OccupancyGrid()
-    msg.header.frame_id = frame
-    msg.header.stamp = rospy.Time.now()
-    info = msg.info
-    info.map_load_time = msg.header.stamp
-    info.resolution = grid.resolution
-    info.width, info.height = grid.width, grid.height
-    info.origin.position.x, info.origin.position.y = grid.origin_x, grid.origin_y
-    info.origin.orientation.w = 1.0
-    msg.data = [v if -1 <= v <= 100 else 100 for v in grid.cells]
-    return msg
+    return convert.occupancy_grid(frame, rospy.Time.now(), grid.resolution, grid.width, grid.height,
+                                  grid.origin_x, grid.origin_y, [v if -1 <= v <= 100 else 100 for v in grid.cells])

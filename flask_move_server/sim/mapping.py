@@ -24,6 +24,7 @@ import tf2_ros
 from nav_msgs.msg import MapMetaData, OccupancyGrid, Odometry
 
 from flask_move_server.geometry import compose, inverse, normalize_angle
+from flask_move_server.ros import convert
 from flask_move_server.ros.convert import pose_from_msg, transform_message
 
 log = logging.getLogger(__name__)
@@ -126,15 +127,5 @@ class SimMapping:
 
 def occupancy_grid(slam, frame, stamp):
     """The SLAM map as a nav_msgs/OccupancyGrid (data: one copy of the signed bytes)."""
-    msg = OccupancyGrid()
-    msg.header.frame_id = frame
-    msg.header.stamp = stamp
-    info = msg.info
-    info.map_load_time = stamp
-    info.resolution = slam.resolution
-    info.width, info.height = slam.width, slam.height
-    info.origin.position.x, info.origin.position.y = slam.origin_x, slam.origin_y
-    info.origin.orientation.w = 1.0
-    msg.data = array("b", slam.grid_bytes())
-    return msg
-
+    return convert.occupancy_grid(frame, stamp, slam.resolution, slam.width, slam.height,
+                                  slam.origin_x, slam.origin_y, array("b", slam.grid_bytes()))
