@@ -1,4 +1,4 @@
-"""The HTTP API of CONTRACT.md: goals, stop, teleop, waypoints, status, health.
+"""The HTTP API of docs/api.md: goals, stop, teleop, waypoints, status, health.
 
 Routes parse and validate the request, call the Robot facade or the waypoint
 store, and shape the JSON answer. They know nothing of rospy.
