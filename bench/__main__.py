@@ -20,6 +20,8 @@ BENCHMARKS = [
     ("server", "bench_server.py", ["--seconds", "2", "--idle", "3"]),
     ("goals", "bench_goals.py", ["--goals", "30", "--burst", "100", "--stages"]),
     ("teleop", "bench_teleop.py", ["--requests", "100", "--seconds", "4"]),
+    ("maps", "bench_maps.py", ["--repeat", "3"]),
+    ("slam", "bench_slam.py", []),
     ("sim", "bench_sim.py", ["--repeat", "3", "--drive-seconds", "8"]),
     ("stack", "bench_stack.py", ["--repeat", "2"]),
     ("abuse", "bench_abuse.py", ["--connections", "100", "--rounds", "10", "--signals", "2",
