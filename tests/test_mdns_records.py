@@ -8,7 +8,7 @@ import sys
 import pytest
 from zeroconf import DNSAddress, DNSIncoming, DNSOutgoing, DNSService
 
-from flask_move_server import API_VERSION, __version__, config, discovery, dns_wire, mdns
+from flask_move_server import API_VERSION, __version__, config, discovery, dns_wire, mdns, mdns_records
 from flask_move_server.errors import ConfigError
 
 INTERFACES = [
@@ -22,7 +22,7 @@ def _answers(incoming):
 
 
 def test_both_service_types_are_advertised_under_one_instance_with_the_api_in_txt():
-    records = mdns.service_records("kitchen bot", "robot", 5000, ["192.168.1.20"], token_required=True)
+    records = mdns_records.service_records("kitchen bot", "robot", 5000, ["192.168.1.20"], token_required=True)
     assert [r.type for r in records] == ["_flask-move._tcp.local.", "_http._tcp.local."]
     assert [r.name for r in records] == ["kitchen bot._flask-move._tcp.local.", "kitchen bot._http._tcp.local."]
     for record in records:
@@ -33,14 +33,14 @@ def test_both_service_types_are_advertised_under_one_instance_with_the_api_in_tx
 
 
 def test_without_a_token_txt_says_so_and_a_local_suffix_is_not_doubled():
-    (record, _) = mdns.service_records("robot", "robot.local.", 8080, [], token_required=False)
+    (record, _) = mdns_records.service_records("robot", "robot.local.", 8080, [], token_required=False)
     assert record.properties["token"] == "no"
     assert record.server == "robot.local."
     assert record.addresses == ()
 
 
 def test_records_become_zeroconf_service_infos_that_a_client_reads_back_as_a_robot():
-    (record, _) = mdns.service_records("robot", "robot", 5000, ["192.168.1.20", "10.0.0.5"], True)
+    (record, _) = mdns_records.service_records("robot", "robot", 5000, ["192.168.1.20", "10.0.0.5"], True)
     info = mdns._service_info(record)
     robot = discovery.robot_from_service(record.type, record.name, info)
     assert robot == discovery.FoundRobot("robot", "robot.local", ("192.168.1.20", "10.0.0.5"), 5000, True,
@@ -56,7 +56,7 @@ def test_records_become_zeroconf_service_infos_that_a_client_reads_back_as_a_rob
     ("127.0.0.1", ()),
 ])
 def test_only_addresses_the_server_is_reachable_on_are_advertised(bind_host, expected):
-    assert mdns.reachable_addresses(bind_host, INTERFACES) == expected
+    assert mdns_records.reachable_addresses(bind_host, INTERFACES) == expected
 
 
 def test_avahi_counts_as_running_only_when_its_pid_file_names_a_live_process(tmp_path):
@@ -78,15 +78,15 @@ def test_conflicts_name_other_devices_on_our_host_name_and_a_taken_instance():
         ("robot.local.", dns_wire.TYPE_A, socket.inet_aton("192.168.1.20")),
         ("Robot._http._tcp.local.", dns_wire.TYPE_SRV, b"\0" * 8),
     ]
-    assert mdns.conflicts(records, "robot", "robot", ("192.168.1.20",)) == (["192.168.1.7"], True)
-    assert mdns.conflicts(records, "robot", "office", ("192.168.1.7", "192.168.1.20")) == ([], False)
-    assert mdns.conflicts([], "robot", "robot", ()) == ([], False)
+    assert mdns_records.conflicts(records, "robot", "robot", ("192.168.1.20",)) == (["192.168.1.7"], True)
+    assert mdns_records.conflicts(records, "robot", "office", ("192.168.1.7", "192.168.1.20")) == ([], False)
+    assert mdns_records.conflicts([], "robot", "robot", ()) == ([], False)
 
 
 def test_conflict_questions_skip_the_host_name_when_avahi_owns_it():
-    assert mdns.conflict_questions(None, "robot") == [
+    assert mdns_records.conflict_questions(None, "robot") == [
         ("robot._flask-move._tcp.local.", dns_wire.TYPE_SRV), ("robot._http._tcp.local.", dns_wire.TYPE_SRV)]
-    assert ("robot.local.", dns_wire.TYPE_A) in mdns.conflict_questions("robot", "robot")
+    assert ("robot.local.", dns_wire.TYPE_A) in mdns_records.conflict_questions("robot", "robot")
 
 
 def test_the_query_packet_is_what_zeroconf_itself_parses():
