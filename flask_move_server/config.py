@@ -7,18 +7,19 @@ value out of range or an unknown key (a typo must not silently fall back to a
 default) raises :class:`~flask_move_server.errors.ConfigError` naming the
 file, the key and the reason. Pure: imports neither rospy nor Flask.
 
-This module is the schema; the generic loader is typed_yaml.py, the token and the serving
-policy are access.py, and the motor backend names come from the registry in drive/backends.
+This module is the schema; the rules its values are checked by are config_rules.py, the generic
+loader is typed_yaml.py, the token and the serving policy are access.py, and the motor backend
+names come from the registry in drive/backends.
 """
 
 import os
-import re
 from dataclasses import dataclass, field
 from typing import List, Literal, Optional
 
 import yaml
 
 from flask_move_server import access
+from flask_move_server import config_rules as rules
 from flask_move_server.access import TOKEN_ENV, check_serving_policy  # noqa: F401 (config.<name> for the wiring)
 from flask_move_server.drive.backends import names as backend_names
 from flask_move_server.errors import ConfigError
@@ -35,63 +36,23 @@ from flask_move_server.typed_yaml import (  # noqa: F401 (as_plain, merge: confi
 MotorBackendName = Literal[tuple(backend_names())]
 
 
-def _positive(value):
-    return None if value > 0 else "must be greater than 0"
-
-
-def _non_negative(value):
-    return None if value >= 0 else "must be 0 or more"
-
-
-def _port(value):
-    return None if 0 <= value <= 65535 else "must be a TCP port, 0 to 65535"
-
-
-def _dns_label(value):
-    if value.endswith(".local"):
-        return "must be the name without .local ({!r}, not {!r})".format(value[: -len(".local")], value)
-    valid = 0 < len(value) <= 63 and value[0] != "-" and value[-1] != "-" and all(
-        c.isascii() and (c.isalnum() or c == "-") for c in value
-    )
-    return None if valid else "must be 1 to 63 letters, digits or '-' (not at either end), like robot"
-
-
-def _instance_name(value):
-    if "." in value:
-        return "must not contain '.' (it separates DNS labels)"
-    if 0 < len(value.encode("utf-8")) <= 63:
-        return None
-    return "must be 1 to 63 bytes of text"
-
-
-def _host_names(value):
-    for name in value:
-        if name != "*" and not re.fullmatch(r"\.?[A-Za-z0-9_-]+(\.[A-Za-z0-9_-]+)*\.?", name):
-            return "must list host names (robot.lan), domains (.lan) or '*', got {!r}".format(name)
-    return None
-
-
-def _speed_factor(value):
-    return None if 0 < value <= 20 else "must be above 0 and at most 20 (simulated seconds per real second)"
-
-
 @dataclass
 class ServerConfig:
     """HTTP server: where it listens and who may use it."""
 
     host: str = "0.0.0.0"
-    port: int = checked(_port, default=5000)
+    port: int = checked(rules.tcp_port, default=5000)
     token: Optional[str] = None
     token_file: Optional[str] = path_field(default=None)
     insecure: bool = False
-    threads: int = checked(_positive, default=6)
-    max_body_bytes: int = checked(_positive, default=16384)
+    threads: int = checked(rules.positive, default=6)
+    max_body_bytes: int = checked(rules.positive, default=16384)
     static: bool = True
-    allowed_hosts: List[str] = checked(_host_names, default_factory=list)
-    connection_limit: int = checked(_positive, default=100)
-    request_timeout: float = checked(_positive, default=10.0)
-    channel_timeout: float = checked(_positive, default=30.0)
-    max_streams: int = checked(_positive, default=8)
+    allowed_hosts: List[str] = checked(rules.host_names, default_factory=list)
+    connection_limit: int = checked(rules.positive, default=100)
+    request_timeout: float = checked(rules.positive, default=10.0)
+    channel_timeout: float = checked(rules.positive, default=30.0)
+    max_streams: int = checked(rules.positive, default=8)
 
 
 @dataclass
@@ -99,7 +60,7 @@ class WaypointsConfig:
     """Where the named places live."""
 
     file: str = path_field(default="waypoints.yaml")
-    lock_timeout: float = checked(_positive, default=3.0)
+    lock_timeout: float = checked(rules.positive, default=3.0)
 
 
 @dataclass
@@ -116,7 +77,7 @@ class RosConfig:
     """The rospy node and how the ROS master is watched."""
 
     node_name: str = "flask_move_server"
-    master_check_period: float = checked(_positive, default=1.0)
+    master_check_period: float = checked(rules.positive, default=1.0)
     exit_on_new_master: bool = True
     frames: FramesConfig = field(default_factory=FramesConfig)
 
@@ -130,9 +91,9 @@ class NavigationConfig:
     simple_goal_topic: str = "move_base_simple/goal"
     amcl_pose_topic: str = "amcl_pose"
     plan_topic: str = "move_base/NavfnROS/plan"
-    server_wait: float = checked(_non_negative, default=0.2)
-    max_wait: float = checked(_positive, default=600.0)
-    pose_max_age: float = checked(_positive, default=2.0)
+    server_wait: float = checked(rules.non_negative, default=0.2)
+    max_wait: float = checked(rules.positive, default=600.0)
+    pose_max_age: float = checked(rules.positive, default=2.0)
 
 
 @dataclass
@@ -140,31 +101,19 @@ class TeleopConfig:
     """Velocity commands sent from ``POST /teleop``."""
 
     topic: str = "cmd_vel"
-    max_linear: float = checked(_positive, default=0.4)
-    max_angular: float = checked(_positive, default=1.5)
-    deadman: float = checked(_positive, default=0.5)
-    rate: float = checked(_positive, default=10.0)
-
-
-def _fraction(value):
-    return None if 0 <= value <= 1 else "must be between 0 and 1"
-
-
-def _gpio(value):
-    return None if value is None or 0 <= value <= 27 else "must be a BCM GPIO number, 0 to 27"
-
-
-def _debounce(value):
-    return None if 0 <= value <= 1 else "must be 0 to 1 seconds"
+    max_linear: float = checked(rules.positive, default=0.4)
+    max_angular: float = checked(rules.positive, default=1.5)
+    deadman: float = checked(rules.positive, default=0.5)
+    rate: float = checked(rules.positive, default=10.0)
 
 
 @dataclass
 class MotorChannelConfig:
     """One L298N channel (a motor, or two in parallel): BCM pins and direction."""
 
-    in1: Optional[int] = checked(_gpio, default=None)
-    in2: Optional[int] = checked(_gpio, default=None)
-    en: Optional[int] = checked(_gpio, default=None)
+    in1: Optional[int] = checked(rules.gpio_pin, default=None)
+    in2: Optional[int] = checked(rules.gpio_pin, default=None)
+    en: Optional[int] = checked(rules.gpio_pin, default=None)
     invert: bool = False
 
 
@@ -178,7 +127,7 @@ class L298nConfig:
 
     left: List[MotorChannelConfig] = _channels((17, 27, 22), (23, 24, 25))
     right: List[MotorChannelConfig] = _channels((12, 13, 19), (16, 20, 21))
-    pwm_frequency: float = checked(_positive, default=200.0)
+    pwm_frequency: float = checked(rules.positive, default=200.0)
     stop_mode: Literal["brake", "coast"] = "brake"
 
 
@@ -187,13 +136,13 @@ class SerialDriveConfig:
     """A microcontroller speaking the ros_arduino_bridge protocol over pyserial."""
 
     port: str = "/dev/ttyACM0"
-    baudrate: int = checked(_positive, default=57600)
-    timeout: float = checked(_positive, default=0.2)
-    pid_rate: float = checked(_positive, default=30.0)
-    ticks_per_rev: float = checked(_positive, default=1920.0)
-    open_delay: float = checked(_non_negative, default=2.0)
-    reconnect_period: float = checked(_positive, default=1.0)
-    keepalive: float = checked(_positive, default=0.5)
+    baudrate: int = checked(rules.positive, default=57600)
+    timeout: float = checked(rules.positive, default=0.2)
+    pid_rate: float = checked(rules.positive, default=30.0)
+    ticks_per_rev: float = checked(rules.positive, default=1920.0)
+    open_delay: float = checked(rules.non_negative, default=2.0)
+    reconnect_period: float = checked(rules.positive, default=1.0)
+    keepalive: float = checked(rules.positive, default=0.5)
 
 
 @dataclass
@@ -203,24 +152,24 @@ class DriveConfig:
     backend: MotorBackendName = "none"
     cmd_vel_topic: str = "cmd_vel"
     odom_topic: str = "odom"
-    cmd_vel_timeout: float = checked(_positive, default=0.5)
-    odom_rate: float = checked(_positive, default=20.0)
-    control_rate: float = checked(_positive, default=50.0)
+    cmd_vel_timeout: float = checked(rules.positive, default=0.5)
+    odom_rate: float = checked(rules.positive, default=20.0)
+    control_rate: float = checked(rules.positive, default=50.0)
     publish_tf: bool = True
-    track_width: float = checked(_positive, default=0.2)
-    track_multiplier: float = checked(_positive, default=1.0)
-    wheel_radius: float = checked(_positive, default=0.0325)
-    max_wheel_speed: float = checked(_positive, default=0.5)
-    min_duty: float = checked(_fraction, default=0.3)
-    max_duty: float = checked(_fraction, default=1.0)
-    max_linear: float = checked(_positive, default=0.4)
-    max_angular: float = checked(_positive, default=2.0)
-    max_linear_accel: float = checked(_non_negative, default=1.0)
-    max_angular_accel: float = checked(_non_negative, default=4.0)
+    track_width: float = checked(rules.positive, default=0.2)
+    track_multiplier: float = checked(rules.positive, default=1.0)
+    wheel_radius: float = checked(rules.positive, default=0.0325)
+    max_wheel_speed: float = checked(rules.positive, default=0.5)
+    min_duty: float = checked(rules.fraction, default=0.3)
+    max_duty: float = checked(rules.fraction, default=1.0)
+    max_linear: float = checked(rules.positive, default=0.4)
+    max_angular: float = checked(rules.positive, default=2.0)
+    max_linear_accel: float = checked(rules.non_negative, default=1.0)
+    max_angular_accel: float = checked(rules.non_negative, default=4.0)
     l298n: L298nConfig = field(default_factory=L298nConfig)
     serial: SerialDriveConfig = field(default_factory=SerialDriveConfig)
-    estop_pin: Optional[int] = checked(_gpio, default=None)
-    estop_debounce: float = checked(_debounce, default=0.02)
+    estop_pin: Optional[int] = checked(rules.gpio_pin, default=None)
+    estop_debounce: float = checked(rules.debounce_seconds, default=0.02)
 
 
 @dataclass
@@ -228,10 +177,10 @@ class MdnsConfig:
     """Advertising the robot as ``<hostname>.local`` with zeroconf (see docs/network.md)."""
 
     enabled: bool = True
-    hostname: str = checked(_dns_label, default="robot")
-    instance: Optional[str] = checked(_instance_name, default=None)
+    hostname: str = checked(rules.dns_label, default="robot")
+    instance: Optional[str] = checked(rules.instance_name, default=None)
     publish_hostname: Literal["auto", "always", "never"] = "auto"
-    address_check_period: float = checked(_positive, default=2.0)
+    address_check_period: float = checked(rules.positive, default=2.0)
 
 
 @dataclass
@@ -240,26 +189,19 @@ class SimConfig:
 
     enabled: bool = False
     map: Optional[str] = path_field(default=None)
-    speed_factor: float = checked(_speed_factor, default=1.0)
-    robot_radius: float = checked(_positive, default=0.15)
-    safety_margin: float = checked(_non_negative, default=0.1)
-    rate: float = checked(_positive, default=50.0)
-    scan_rate: float = checked(_non_negative, default=5.5)
-    control_rate: float = checked(_positive, default=20.0)
-    max_linear: float = checked(_positive, default=0.3)
-    max_angular: float = checked(_positive, default=1.2)
-    xy_goal_tolerance: float = checked(_positive, default=0.1)
-    yaw_goal_tolerance: float = checked(_positive, default=0.2)
-    stuck_timeout: float = checked(_positive, default=10.0)
+    speed_factor: float = checked(rules.speed_factor, default=1.0)
+    robot_radius: float = checked(rules.positive, default=0.15)
+    safety_margin: float = checked(rules.non_negative, default=0.1)
+    rate: float = checked(rules.positive, default=50.0)
+    scan_rate: float = checked(rules.non_negative, default=5.5)
+    control_rate: float = checked(rules.positive, default=20.0)
+    max_linear: float = checked(rules.positive, default=0.3)
+    max_angular: float = checked(rules.positive, default=1.2)
+    xy_goal_tolerance: float = checked(rules.positive, default=0.1)
+    yaw_goal_tolerance: float = checked(rules.positive, default=0.2)
+    stuck_timeout: float = checked(rules.positive, default=10.0)
     map_topic: str = "map"
     scan_topic: str = "scan"
-
-
-def _launch_command(value):
-    parts = value.split()
-    if len(parts) == 2 and parts[1].endswith(".launch"):
-        return None
-    return "must be 'PACKAGE FILE.launch', like 'flask_move_server mapping.launch'"
 
 
 @dataclass
@@ -269,8 +211,8 @@ class MapsConfig:
     folder: Optional[str] = path_field(default=None)  # None: maps/ beside waypoints.file
     state_file: Optional[str] = path_field(default=None)  # None: mode.json beside waypoints.file
     topic: str = "map"
-    save_timeout: float = checked(_positive, default=10.0)
-    image_margin: float = checked(_non_negative, default=1.0)
+    save_timeout: float = checked(rules.positive, default=10.0)
+    image_margin: float = checked(rules.non_negative, default=1.0)
 
 
 @dataclass
@@ -278,11 +220,11 @@ class ModesConfig:
     """Who runs the navigation stack for the modes idle, mapping and navigation."""
 
     stack: Literal["auto", "roslaunch", "sim", "none"] = "auto"
-    mapping_launch: str = checked(_launch_command, default="flask_move_server mapping.launch")
-    navigation_launch: str = checked(_launch_command, default="flask_move_server navigation.launch")
-    start_timeout: float = checked(_positive, default=60.0)
-    stop_timeout: float = checked(_positive, default=10.0)
-    restarts: int = checked(_non_negative, default=3)
+    mapping_launch: str = checked(rules.launch_command, default="flask_move_server mapping.launch")
+    navigation_launch: str = checked(rules.launch_command, default="flask_move_server navigation.launch")
+    start_timeout: float = checked(rules.positive, default=60.0)
+    stop_timeout: float = checked(rules.positive, default=10.0)
+    restarts: int = checked(rules.non_negative, default=3)
     initial_pose_topic: str = "initialpose"
 
 
