@@ -3,15 +3,17 @@
 The server's navigator and pose tracker, the base controller, the simulated
 world and move_base, and the recorder all meet the same few messages
 (geometry_msgs Pose, PoseStamped, Transform, TransformStamped, Twist; the sim's
-stand-ins for gmapping and map_server, a nav_msgs/OccupancyGrid). A
+stand-ins for gmapping, map_server and move_base, a nav_msgs/OccupancyGrid and Path). A
 planar pose keeps x, y and the rotation about z; z, roll and pitch are zero
 on the way out and ignored on the way in. The maths itself is in
 :mod:`flask_move_server.geometry`.
 """
 
+import math
+
 import tf2_ros
 from geometry_msgs.msg import PoseStamped, TransformStamped, Twist
-from nav_msgs.msg import OccupancyGrid
+from nav_msgs.msg import OccupancyGrid, Path
 
 from flask_move_server.geometry import Pose2D, quaternion_to_yaw, yaw_to_quaternion
 
@@ -77,4 +79,15 @@ def occupancy_grid(frame, stamp, resolution, width, height, origin_x, origin_y, 
     info.origin.position.x, info.origin.position.y = origin_x, origin_y
     info.origin.orientation.w = 1.0
     msg.data = data
+    return msg
+
+
+def path_message(points, frame, stamp):
+    """A nav_msgs/Path through ``points`` (x, y), each pose facing the next point."""
+    msg = Path()
+    msg.header.frame_id, msg.header.stamp = frame, stamp
+    for i, (x, y) in enumerate(points):
+        a, b = (points[i], points[i + 1]) if i + 1 < len(points) else (points[max(0, i - 1)], points[i])
+        yaw = math.atan2(b[1] - a[1], b[0] - a[0]) if a != b else 0.0
+        msg.poses.append(pose_stamped(Pose2D(x, y, yaw), frame, stamp))
     return msg

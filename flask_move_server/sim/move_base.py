@@ -32,9 +32,10 @@ from move_base_msgs.msg import MoveBaseAction, MoveBaseActionGoal, MoveBaseFeedb
 from nav_msgs.msg import Path
 
 from flask_move_server.errors import PlanningFailed
-from flask_move_server.geometry import Pose2D, normalize_angle
+from flask_move_server.ros import convert
 from flask_move_server.ros.convert import pose_from_msg, pose_stamped, twist
 from flask_move_server.sim.follower import DONE, PathFollower
+from flask_move_server.sim.watches import ProgressWatch, ReplanWatch
 
 log = logging.getLogger(__name__)
 
@@ -180,8 +181,8 @@ class MoveBaseStandIn:
         """Drive along the path until reached, preempted or stuck: (outcome, text)."""
         factor = self.config.speed_factor
         period = max(0.01, 1.0 / (self.config.control_rate * factor))  # at most 100 Hz, however fast the sim
-        stuck = _ProgressWatch(self.config.stuck_timeout / factor)
-        replan = _ReplanWatch(self.planner, max(MIN_REPLAN_CHECK_PERIOD, REPLAN_CHECK_PERIOD / factor))
+        stuck = ProgressWatch(self.config.stuck_timeout / factor)
+        replan = ReplanWatch(self.planner, max(MIN_REPLAN_CHECK_PERIOD, REPLAN_CHECK_PERIOD / factor))
         settle_until = None
         while not rospy.is_shutdown() and not self._closed.is_set() and not endpoint.withdrawn.is_set():
             if endpoint.server.is_preempt_requested():
@@ -210,7 +211,7 @@ class MoveBaseStandIn:
     def _publish_plan(self, points):
         self.plans += 1
         if self._plan_pub is not None:
-            self._plan_pub.publish(path_message(points, self.frames.map, rospy.Time.now()))
+            self._plan_pub.publish(convert.path_message(points, self.frames.map, rospy.Time.now()))
 
     def _feedback(self, server, target, pose):
         feedback = MoveBaseFeedback()
@@ -277,58 +278,3 @@ class _Endpoint:
             timer.join(timeout=2)
         time.sleep(0.05)  # the aborted goal's result is still in the publisher's queue
         actions.stop()
-
-
-class _ReplanWatch:
-    """Asks a growing map's planner, every ``period`` s and only when the map changed, whether the path is blocked."""
-
-    def __init__(self, planner, period):
-        self.planner = planner
-        self.period = period
-        self._blocked = getattr(planner, "path_blocked", None)
-        self._version = self._map_version()
-        self._next_check = time.monotonic() + period
-
-    def _map_version(self):
-        slam = getattr(self.planner, "slam", None)
-        return None if slam is None else slam.version
-
-    def due(self, remaining, now):
-        """True when the map grew an obstacle across ``remaining`` (the points still to drive)."""
-        if self._blocked is None or now < self._next_check:
-            return False
-        self._next_check = now + self.period
-        version = self._map_version()
-        if version == self._version:
-            return False
-        self._version = version
-        return self._blocked(remaining)
-
-
-def path_message(points, frame, stamp):
-    """A nav_msgs/Path through ``points`` (x, y), each pose facing the next point."""
-    msg = Path()
-    msg.header.frame_id, msg.header.stamp = frame, stamp
-    for i, (x, y) in enumerate(points):
-        a, b = (points[i], points[i + 1]) if i + 1 < len(points) else (points[max(0, i - 1)], points[i])
-        yaw = math.atan2(b[1] - a[1], b[0] - a[0]) if a != b else 0.0
-        msg.poses.append(pose_stamped(Pose2D(x, y, yaw), frame, stamp))
-    return msg
-
-
-class _ProgressWatch:
-    """Tells when the robot has not moved (1 cm or 3 degrees) for ``timeout`` seconds."""
-
-    def __init__(self, timeout):
-        self.timeout = timeout
-        self._anchor = None
-        self._since = None
-
-    def stalled(self, pose, now):
-        if self._anchor is None or (
-            pose.distance_to(self._anchor) > 0.01 or abs(normalize_angle(pose.yaw - self._anchor.yaw)) > 0.05
-        ):
-            self._anchor, self._since = pose, now
-            return False
-        return now - self._since > self.timeout
-
