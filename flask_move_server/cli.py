@@ -1,7 +1,8 @@
 """``flask-move-server``: read the config, build every part, serve, stop cleanly.
 
-Wiring and lifecycle only. Parts are started in order and registered on an
-ExitStack, so SIGTERM/SIGINT (or a fatal ROS event) closes them in reverse.
+Wiring and lifecycle only (the command line and the config it makes are server_options.py).
+Parts are started in order and registered on an ExitStack, so SIGTERM/SIGINT (or a fatal ROS
+event) closes them in reverse.
 A signal stops the robot first (cancel the goal, end teleop, motors at zero;
 a waiting /goto answers 503), then lets waitress drain, then closes the rest:
 stop accepting requests, cancel the goal, zero the velocity, stop the motors,
@@ -10,7 +11,6 @@ signal, 2 for a bad config, 3 when the ROS master was replaced (systemd
 restarts the server).
 """
 
-import argparse
 import contextlib
 import logging
 import os
@@ -18,79 +18,19 @@ import signal
 import sys
 import time
 
-from flask_move_server import __version__
-from flask_move_server import config as config_mod
-from flask_move_server.drive.backends import names as motor_backend_names
+from flask_move_server import server_options
 from flask_move_server.errors import ConfigError, DriveError, WaypointFileError
 from flask_move_server.launching import (
     EXIT_CONFIG,
     EXIT_FAILURE,
     EXIT_MASTER_REPLACED,
     EXIT_OK,
-    LOG_LEVELS,
-    apply_private_params,
     refuse,
-    ros_node_name,
     setup_logging,
     split_ros_args,
 )
 
 log = logging.getLogger("flask_move_server")
-
-
-def parse_args(argv):
-    parser = argparse.ArgumentParser(
-        prog="flask-move-server",
-        description="Serve the HTTP API that sends a ROS 1 robot to named waypoints.",
-    )
-    parser.add_argument("--config", metavar="FILE", help="server config (YAML); default: built-in defaults")
-    parser.add_argument("--waypoints", metavar="FILE", help="waypoints file (default: waypoints.file in the config)")
-    parser.add_argument("--host", help="address to listen on (default 0.0.0.0; 127.0.0.1 with --sim)")
-    parser.add_argument("--port", type=int, help="TCP port (default 5000); 0 picks a free one and logs it")
-    parser.add_argument("--motor-backend", choices=motor_backend_names(), help="motor driver")
-    parser.add_argument("--no-mdns", action="store_true", help="do not advertise robot.local over mDNS")
-    parser.add_argument("--insecure", action="store_true", help="allow serving the network without a token")
-    parser.add_argument("--sim", action="store_true", help="run a simulated robot and world (no hardware)")
-    parser.add_argument("--map", metavar="MAP.yaml", help="with --sim: the map_server map to simulate")
-    parser.add_argument("--log-level", default="INFO", choices=LOG_LEVELS)
-    parser.add_argument("--version", action="version", version="%(prog)s " + __version__)
-    return parser.parse_args(argv)
-
-
-def load_config(args, ros_args):
-    """The config file, then ROS private params (under roslaunch), then command-line flags."""
-    config = config_mod.load(args.config)
-    node_name = ros_node_name(ros_args)
-    if node_name:
-        config = apply_private_params(config, node_name)
-    _apply_flags(config, args)
-    config_mod.check_serving_policy(config)
-    return config
-
-
-def _apply_flags(config, args):
-    if args.waypoints:
-        config.waypoints.file = os.path.abspath(args.waypoints)
-    if args.sim:
-        config.sim.enabled = True
-        if args.host is None:  # the simulated robot is this machine's only, unless --host says otherwise
-            config.server.host = "127.0.0.1"
-        if args.motor_backend is None:
-            config.drive.backend = "sim"
-    if args.map:
-        config.sim.map = os.path.abspath(args.map)
-    if args.host is not None:
-        config.server.host = args.host
-    if args.port is not None:
-        if not 0 <= args.port <= 65535:
-            raise ConfigError("--port", None, "must be a TCP port, 0 to 65535")
-        config.server.port = args.port
-    if args.motor_backend:
-        config.drive.backend = args.motor_backend
-    if args.no_mdns:
-        config.mdns.enabled = False
-    if args.insecure:
-        config.server.insecure = True
 
 
 class Server:
@@ -297,10 +237,10 @@ def build_robot(config, node, drive, estop=None):
 def main(argv=None):
     argv = sys.argv[1:] if argv is None else argv
     ours, ros_args = split_ros_args(argv)
-    args = parse_args(ours)
+    args = server_options.parse_args(ours)
     setup_logging(args.log_level)
     try:
-        config = load_config(args, ros_args)
+        config = server_options.load_config(args, ros_args)
     except ConfigError as exc:
         return _refuse(exc, EXIT_CONFIG)
     server = Server(config)

@@ -4,7 +4,7 @@ import os
 
 import pytest
 
-from flask_move_server import access, cli, config
+from flask_move_server import access, config, server_options
 from flask_move_server.drive import backends
 from flask_move_server.errors import ConfigError
 from tests.conftest import ROOT, run_cli
@@ -109,8 +109,8 @@ def test_serving_the_network_without_a_token_is_refused_with_the_fix(monkeypatch
 
 def test_flags_override_the_file(tmp_path):
     path = _write(tmp_path, "server:\n  port: 6000\n  host: 127.0.0.1\n")
-    args = cli.parse_args(["--config", path, "--port", "7000", "--no-mdns", "--waypoints", "x.yaml"])
-    loaded = cli.load_config(args, [])
+    args = server_options.parse_args(["--config", path, "--port", "7000", "--no-mdns", "--waypoints", "x.yaml"])
+    loaded = server_options.load_config(args, [])
     assert loaded.server.port == 7000
     assert loaded.mdns.enabled is False
     assert loaded.waypoints.file == os.path.abspath("x.yaml")
@@ -134,9 +134,10 @@ def test_the_server_refuses_the_network_without_a_token():
 
 def test_sim_serves_this_machine_only_even_with_a_config_file(tmp_path):
     path = _write(tmp_path, "server:\n  port: 6000\n")
-    loaded = cli.load_config(cli.parse_args(["--config", path, "--sim"]), [])
+    loaded = server_options.load_config(server_options.parse_args(["--config", path, "--sim"]), [])
     assert loaded.server.host == "127.0.0.1" and loaded.drive.backend == "sim"
-    loaded = cli.load_config(cli.parse_args(["--config", path, "--sim", "--host", "0.0.0.0", "--insecure"]), [])
+    flags = ["--config", path, "--sim", "--host", "0.0.0.0", "--insecure"]
+    loaded = server_options.load_config(server_options.parse_args(flags), [])
     assert loaded.server.host == "0.0.0.0"
 
 
