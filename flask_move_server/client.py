@@ -17,7 +17,7 @@ from flask_move_server import __version__, client_maps, client_modes
 from flask_move_server.api_client import DEFAULT_TIMEOUT, DEFAULT_URL, ExitStatus, RobotClient, dumps, waypoint_path
 from flask_move_server.client_text import LiveLine, describe_status, progress, waypoint_table, xy_yaw
 from flask_move_server.errors import ClientError
-from flask_move_server.goal_endings import failure_sentence
+from flask_move_server.goal_endings import failure_sentence, replaced_sentence
 
 POLL_PERIOD = 0.5  # s between GET /status while `goto --wait` follows a goal
 
@@ -47,7 +47,7 @@ def follow_goal(client, goal_id, name, timeout=None):
         while True:
             nav = client.get("/status")["navigation"]
             if goal_id is not None and nav.get("goal_id") not in (None, goal_id):
-                nav = dict(nav, state="canceled", message=None)  # a newer goal replaced ours
+                nav = dict(nav, state="canceled", message=replaced_sentence(name))
             state = nav.get("state")
             if state == "succeeded":
                 live.end()

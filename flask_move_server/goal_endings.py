@@ -24,6 +24,12 @@ def failure_sentence(state, target=None):
     return _SENTENCES.get(state, _SENTENCES["aborted"]).format(to=to)
 
 
+def replaced_sentence(target=None):
+    """The sentence for a goal to ``target`` that a newer goal took the place of before it arrived."""
+    to = " to {!r}".format(target) if target else ""
+    return "The goal{} was replaced by a newer goal before the robot arrived.".format(to)
+
+
 def said_sentence(state, target, said):
     """The sentence for a goal that move_base ended in ``state`` giving its own reason ``said``.
 

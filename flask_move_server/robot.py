@@ -9,7 +9,7 @@ e-stop latch stops everything and refuses goals and teleop until released).
 
 from flask_move_server.drive.estop import EStop
 from flask_move_server.errors import NavigationFailed, ShuttingDown
-from flask_move_server.goal_endings import failure_sentence
+from flask_move_server.goal_endings import failure_sentence, replaced_sentence
 
 _SHUTTING_DOWN = "The server is shutting down: the robot was stopped. Send the command again once it is back."
 
@@ -37,8 +37,12 @@ class Robot:
         self._unless_latched_meanwhile()
         return seq
 
-    def wait(self, seq, timeout):
-        """Wait up to ``timeout`` s for goal ``seq``; True when reached, False when still under way."""
+    def wait(self, seq, timeout, target=None):
+        """Wait up to ``timeout`` s for goal ``seq`` (to ``target``); True when reached, False when under way.
+
+        NavigationFailed names ``target``, the goal waited for, even when a newer goal has
+        taken its place (then: "replaced by a newer goal").
+        """
         state = self.navigator.wait(seq, timeout)
         self._check_running()
         if state == "succeeded":
@@ -46,7 +50,11 @@ class Robot:
         if state == "active":
             return False
         nav = self.navigator.status()
-        raise NavigationFailed(state, nav.get("message") or failure_sentence(state, nav["target"]))
+        if nav["goal_id"] == seq:
+            raise NavigationFailed(state, nav.get("message") or failure_sentence(state, nav["target"]))
+        if state == "canceled":  # what Navigator.wait says of a goal a newer one replaced
+            raise NavigationFailed(state, replaced_sentence(target))
+        raise NavigationFailed(state, failure_sentence(state, target))  # it ended, then a newer one came
 
     def navigation_status(self):
         """The goal's state as ``/status`` shows it under ``navigation`` (the pose is not read)."""

@@ -6,6 +6,7 @@ and AMCL. Validation, auth and error shapes, which ROS plays no part in, are tes
 
 import json
 import math
+import threading
 import time
 
 import requests
@@ -81,6 +82,20 @@ def test_a_new_goal_replaces_the_old_and_late_news_of_the_old_is_ignored(client,
     assert second.status_code == 200
     nav = client.get("/status").get_json()["navigation"]
     assert nav["state"] == "succeeded" and nav["target"] == "dock" and nav["goal_id"] == first + 1
+
+
+def test_a_waiting_goto_replaced_by_a_newer_goal_names_its_own_place(client, ready_robot, move_base):
+    assert client.put("/waypoints/far hall", json={"x": HOLD_X, "y": 0, "yaw": 0}).status_code == 201
+    answers = []
+    waiting = threading.Thread(target=lambda: answers.append(client.post("/goto", json={"name": "far hall",
+                                                                                          "wait": 30})))
+    waiting.start()
+    wait_for(lambda: move_base.goals, message="the goal to the far hall to reach move_base")
+    assert client.post("/goto", json={"name": "dock"}).status_code == 202
+    waiting.join(10)
+    body = answers[0].get_json()
+    assert answers[0].status_code == 409 and body["error"] == "navigation_failed" and body["state"] == "canceled"
+    assert body["message"] == "The goal to 'far hall' was replaced by a newer goal before the robot arrived."
 
 
 def test_goto_an_unknown_name_is_404_with_close_names(client, ready_robot, move_base):

@@ -168,6 +168,16 @@ def test_goto_wait_exit_status_tells_how_the_goal_ended(live, capsys):
         stopper.join()
     assert "was canceled" in capsys.readouterr().err
 
+    replacer = threading.Timer(1.0, lambda: client.main(["--url", live.url, "goto", "kitchen"]))
+    replacer.start()
+    try:
+        assert robotctl(live, "goto", "forever", "--wait") == ExitStatus.CANCELED
+    finally:
+        replacer.join()
+    # the server's words for a waiting /goto whose goal a newer one replaced
+    assert capsys.readouterr().err.endswith(
+        "robotctl: The goal to 'forever' was replaced by a newer goal before the robot arrived.\n")
+
 
 def test_goto_unknown_waypoint_suggests_close_names(live, capsys):
     assert robotctl(live, "goto", "kitchn") == ExitStatus.NOT_FOUND
