@@ -12,6 +12,8 @@ from flask_move_server.errors import MapNotReceived, NoMap
 class FakeModes:
     """A mode manager that is always ``running`` in the mode it was told; publishes ``mode`` events."""
 
+    runs_stack = True
+
     def __init__(self, events, mode="mapping", map_name=None):
         self.events = events
         self.calls = []

@@ -15,6 +15,7 @@ from flask_move_server.geometry import Pose2D
 from flask_move_server.maps.catalogue import MapCatalogue
 from flask_move_server.maps.mapfile import Grid
 from flask_move_server.maps.service import MapService
+from flask_move_server.modes.manager import ModeManager
 from flask_move_server.web import create_app
 from tests.fake_maps import FakeMapSource, FakeModes
 from tests.fake_robot import FakeRobot
@@ -108,6 +109,19 @@ def test_an_existing_name_needs_overwrite(client, source, catalogue):
     assert catalogue.load("flat").value(20, 15) == 0  # untouched
     assert client.post("/maps", json={"name": "flat", "overwrite": True}).status_code == 201
     assert catalogue.load("flat").value(20, 15) == 100
+
+
+def test_with_modes_off_the_map_an_outside_stack_publishes_is_saved(robot_config, robot, store, events, source,
+                                                                     catalogue):
+    robot_config.modes.stack = "none"  # the owner runs gmapping with their own launch file
+    modes = ModeManager(robot_config, None)
+    service = MapService(catalogue, store, source, modes=modes, events=events, margin=0.1, save_timeout=0.2)
+    client = create_app(robot_config, robot, store, events=events, modes=modes, maps=service).test_client()
+    r = client.post("/maps", json={"name": "flat"})
+    assert r.status_code == 201, r.get_json()
+    assert files_in(catalogue.folder) == ["flat.pgm", "flat.waypoints.yaml", "flat.yaml"]
+    r = client.post("/maps", json={"name": "flat", "overwrite": True, "then": "navigation"})
+    assert r.status_code == 201 and r.get_json()["mode_error"]["error"] == "modes_off"  # saved; no switch
 
 
 def test_saving_outside_mapping_mode_is_refused_and_writes_nothing(client, modes, catalogue):

@@ -125,6 +125,14 @@ def test_bad_input_is_a_json_4xx_and_changes_nothing(client, robot, robot_config
     assert robot.moved() == []
 
 
+def test_an_unknown_path_answers_with_the_paths_the_api_has(client):
+    message = client.get("/gooto").get_json()["message"]
+    assert message.startswith("No such endpoint: /gooto. The API has ")
+    for path in ("/goto", "/stop", "/waypoints", "/mode", "/maps", "/map", "/pose", "/estop", "/events"):
+        assert path + "," in message or path + " (" in message
+    assert "/static" not in message
+
+
 def test_a_control_character_in_a_url_name_is_a_bad_name_not_a_missing_endpoint(client):
     r = client.put("/waypoints/kitchen%0Adoor", json={"x": 1, "y": 2, "yaw": 0})
     assert r.status_code == 400 and r.get_json()["error"] == "bad_waypoint"

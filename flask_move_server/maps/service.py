@@ -188,8 +188,8 @@ class MapService:
     def _require_mapping(self):
         if self.source is None:
             raise WrongMode("This server follows no map topic, so there is no map being made to save.")
-        if self.modes is None:
-            return  # the stack is run elsewhere: whatever publishes the map is saved
+        if self.modes is None or not self.modes.runs_stack:
+            return  # the stack is run elsewhere (modes.stack: none): whatever publishes the map is saved
         mode = self.modes.status().get("mode")
         if mode != "mapping":
             raise WrongMode("Saving a map needs mapping mode, and the robot is in {} mode: start mapping first "

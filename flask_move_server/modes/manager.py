@@ -85,6 +85,11 @@ class ModeManager:
             return dict(self._status)
 
     @property
+    def runs_stack(self):
+        """True when this server starts and stops the navigation stack (``modes.stack`` is not none)."""
+        return self._backend is not None
+
+    @property
     def active_map(self):
         """The named map of the navigation mode in force (or being started); None otherwise."""
         with self._changed:

@@ -68,7 +68,6 @@ def create_app(config, robot, store, token=None, events=None, modes=None, maps=N
     ``modes``: the server's ModeManager (None: modes are off, the stack runs outside this server).
     ``maps``: the :class:`~flask_move_server.maps.service.MapService` behind ``/map`` and ``/maps``
     (default: the configured maps folder, no live map, no mode manager).
-    ``modes``: the server's ModeManager (None: modes are off, the stack runs outside this server).
     """
     events = events if events is not None else EventBus()
     modes = modes if modes is not None else ModeManager(config, None)

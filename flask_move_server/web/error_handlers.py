@@ -47,7 +47,7 @@ STATUS = (
 
 _HTTP_CODES = {
     400: ("bad_request", "The request is malformed."),
-    404: ("not_found", "No such endpoint. The API: /goto, /stop, /teleop, /waypoints, /status, /health."),
+    404: ("not_found", None),  # the message names the API's paths, read from the app's routes
     405: ("method_not_allowed", "This endpoint does not take that method."),
     413: ("body_too_large", "The request body is too large."),
 }
@@ -87,6 +87,8 @@ def init_app(app):
     @app.errorhandler(HTTPException)
     def _http(exc):
         code, message = _HTTP_CODES.get(exc.code, (exc.name.lower().replace(" ", "_"), exc.description))
+        if exc.code == 404:
+            message = _no_such_endpoint()
         allowed = sorted(set(getattr(exc, "valid_methods", None) or ()) - {"HEAD", "OPTIONS"})
         if exc.code == 405 and allowed:
             message = "{} takes {}, not {}.".format(request.path, " or ".join(allowed), request.method)
@@ -94,6 +96,11 @@ def init_app(app):
         if exc.code == 405 and exc.valid_methods:
             response.headers["Allow"] = ", ".join(exc.valid_methods)
         return response
+
+    def _no_such_endpoint():
+        tops = sorted({"/" + rule.rule.split("/")[1] for rule in app.url_map.iter_rules()} - {"/", "/static"})
+        return "No such endpoint: {}. The API has {} (GET /openapi.json describes each).".format(
+            request.path, ", ".join(tops))
 
     @app.errorhandler(Exception)
     def _unexpected(exc):
