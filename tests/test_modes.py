@@ -19,6 +19,7 @@ from flask_move_server.errors import (
 from flask_move_server.events import EventBus
 from flask_move_server.geometry import Pose2D
 from flask_move_server.modes.manager import ModeManager
+from flask_move_server.modes.restarts import RestartBudget
 from tests.conftest import wait_for
 from tests.modes_standin import StandInStack, save_map
 
@@ -43,7 +44,7 @@ class Harness:
         self.poses = []
         kw = {"clock": clock} if clock else {}
         self.modes = ModeManager(cfg, self.stack, self.bus, relocalize=self.poses.append, **kw)
-        self.modes.BACKOFF = (0.01, 0.02, 0.04)
+        self.modes.restarts.BACKOFF = (0.01, 0.02, 0.04)
 
     def states(self):
         return [(e["mode"], e["state"]) for e in self.events]
@@ -162,7 +163,7 @@ def test_a_long_run_forgives_earlier_crashes(cfg):
         h.modes.wait(5)
         h.stack.die("crash 1")
         wait_for(lambda: h.modes.status()["message"].startswith("running again"), 5)
-        now[0] += ModeManager.STABLE_RUN
+        now[0] += RestartBudget.STABLE_RUN
         h.stack.die("crash 2, a minute later")
         wait_for(lambda: h.modes.status()["message"] == "running again after 1 restart", 5)
         assert "restarting (1 of 1) after: crash 2, a minute later" in [e["message"] for e in h.events]

@@ -6,10 +6,10 @@ started (``starting``), and the mode is ``running`` or ``failed`` with the backe
 Every state change is published as a ``mode`` event carrying the ``GET /mode`` body, and a
 mode that reached ``running`` is remembered in ``Config.mode_state_file()`` for the next start.
 
-A stack that dies by itself (the backend calls ``on_exit``) is restarted up to
-``modes.restarts`` times, after 1, 2 then 4 s, and is ``failed`` after that (what is left of
-it stopped: roslaunch keeps a stack's other nodes running when one dies); a run of
-:attr:`ModeManager.STABLE_RUN` seconds forgives the earlier crashes.
+A stack that dies by itself (the backend calls ``on_exit``) is restarted as ``modes/restarts.py``
+allows (up to ``modes.restarts`` times, after 1, 2 then 4 s; a long run forgives earlier
+crashes), and is ``failed`` after that (what is left of it stopped: roslaunch keeps a stack's
+other nodes running when one dies).
 
 The backend (``modes/launched.py`` on the robot, ``modes/simulated.py`` with ``--sim``) does
 the work: ``start(mode, map_yaml_or_None, on_exit)`` blocks until the stack is ready or raises
@@ -21,26 +21,16 @@ publishes the robot's pose estimate (``ros/initial_pose.py``). Pure: no rospy, n
 import datetime
 import functools
 import logging
-import os
 import threading
 import time
 
-from flask_move_server.errors import BadMapName, BadRequest, ModesOff, ModeSwitching, StackFailed, UnknownMap, WrongMode
+from flask_move_server.errors import ModesOff, ModeSwitching, StackFailed, WrongMode
 from flask_move_server.maps.catalogue import MapCatalogue
 from flask_move_server.modes import relocalizing, state_file
-from flask_move_server.modes.targets import (
-    IDLE,
-    OUTSIDE,
-    UPGRADED_MAP,
-    Target,
-    default_target,
-    unusable_map_target,
-)
+from flask_move_server.modes.restarts import RestartBudget
+from flask_move_server.modes.targets import IDLE, OUTSIDE, Target, Targets
 
 log = logging.getLogger(__name__)
-
-MODES = state_file.MODES
-
 
 def _now_iso():
     return datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")
@@ -48,9 +38,6 @@ def _now_iso():
 
 class ModeManager:
     """The mode in force and the one switch allowed at a time; ``backend`` None: modes are off."""
-
-    BACKOFF = (1.0, 2.0, 4.0)  # seconds before the 1st, 2nd, 3rd (and later) restart
-    STABLE_RUN = 60.0  # seconds of running after which earlier crashes are forgiven
 
     READY_WAIT = 5.0  # seconds a started stack's move_base may take to answer the server's action client
     READY_POLL = 0.05
@@ -62,8 +49,7 @@ class ModeManager:
         self._events = events
         self._relocalize = relocalize
         self._goals_ready = goals_ready
-        self._clock = clock
-        self._catalogue = MapCatalogue(config.maps_folder())
+        self.targets = Targets(config, MapCatalogue(config.maps_folder()))
         self._changed = threading.Condition()
         self._busy = False
         self._gen = 0
@@ -71,8 +57,7 @@ class ModeManager:
         self._closing = threading.Event()
         self._closed = False
         self._up = False  # the backend may have a stack running (stop it before the next start)
-        self._restarts = 0
-        self._running_since = None
+        self.restarts = RestartBudget(config.modes, clock)
         # Until restore(): idle with nothing started; without a backend, the outside stack's navigation.
         self._target = Target("idle") if backend else Target("navigation")
         self._status = self._body(self._target, "running", IDLE if backend else OUTSIDE)
@@ -119,7 +104,7 @@ class ModeManager:
         if self._backend is None:
             raise ModesOff("This server does not run the navigation stack (modes.stack: none): "
                            "start mapping or navigation with your own launch files.")
-        target = self._target_of(mode, map_name, pose)
+        target = self.targets.of(mode, map_name, pose)
         with self._changed:
             if self._busy:
                 raise ModeSwitching("A switch to {} is under way; wait for it (GET /mode) and try again."
@@ -128,31 +113,6 @@ class ModeManager:
             gen, starting = self._gen, dict(self._status)
         self._spawn(self._switch, gen, target)
         return starting
-
-    def _target_of(self, mode, map_name, pose):
-        if mode not in MODES:
-            raise BadRequest("Unknown mode {!r}: use one of {}.".format(mode, ", ".join(MODES)))
-        if mode != "navigation" and (map_name is not None or pose is not None):
-            raise BadRequest("Only the navigation mode takes a 'map' and a 'pose'.")
-        yaml_path = None
-        if map_name is not None:
-            yaml_path = self._catalogue.yaml_path(map_name)  # BadMapName for a name no map can have
-            if not os.path.isfile(yaml_path):
-                raise self._catalogue_unknown(map_name)
-        if isinstance(pose, str):
-            pose = relocalizing.waypoint_pose(self._waypoints_path(map_name), pose, map_name)
-        return Target(mode, map_name, yaml_path, pose)
-
-    def _catalogue_unknown(self, name):
-        try:
-            self._catalogue.describe(name)
-        except UnknownMap as exc:
-            return exc
-        return UnknownMap("No map named {!r}.".format(name))
-
-    def _waypoints_path(self, map_name):
-        """The waypoints file that goes with ``map_name`` (None: the single waypoints file)."""
-        return self._catalogue.waypoints_path(map_name) if map_name else self._config.waypoints.file
 
     def _begin(self, target, state, message):
         """Under the lock: a new switch owns the manager (the old stack's exits are ignored from now on)."""
@@ -171,7 +131,7 @@ class ModeManager:
                 with self._changed:
                     self._set(target, "stopping", "stopping before " + target.describe())
             self._stop_stack()  # idempotent: also whatever a backend runs before the first switch
-            self._restarts = 0
+            self.restarts.renew()
             failure = self._start(gen, target, "starting " + target.describe(), relocalize=True)
             if failure is not None:
                 with self._changed:
@@ -196,9 +156,9 @@ class ModeManager:
             return str(exc) or type(exc).__name__
         late = self._await_goals() if self._serves_goals(target.mode) else ""
         if relocalize:
-            note = relocalizing.after_start(target, self._waypoints_path, self._publish_pose)
+            note = relocalizing.after_start(target, self.targets.waypoints_path, self._publish_pose)
         else:
-            note = relocalizing.restarted_note(target, self._restarts)
+            note = relocalizing.restarted_note(target, self.restarts.used)
         self._running(gen, target, note + late)
         return None
 
@@ -224,7 +184,7 @@ class ModeManager:
         except OSError as exc:
             log.warning("cannot remember the mode in %s: %s", self._config.mode_state_file(), exc)
         with self._changed:
-            self._running_since = self._clock()
+            self.restarts.running()
             self._set(target, "running", message)
             self._release(gen)  # in the same breath: a crash from now on is this run's
 
@@ -264,8 +224,7 @@ class ModeManager:
             if gen != self._gen or self._busy or self._closed or self._status["state"] != "running":
                 return  # a stack we are stopping, or an old one
             log.warning("the %s stack stopped by itself: %s", self._target.mode, message)
-            if self._running_since is not None and self._clock() - self._running_since >= self.STABLE_RUN:
-                self._restarts = 0
+            self.restarts.crashed()
             gave_up = not self._count_restart(message)
             self._busy = True
             self._gen += 1  # the restarted stack's exits carry the new number; the dead one's are ignored
@@ -283,22 +242,19 @@ class ModeManager:
             self._done(gen)
 
     def _count_restart(self, message):
-        """Under the lock: one more restart, or False after ``modes.restarts`` (the mode is then failed)."""
-        self._restarts += 1
-        if self._restarts > self._config.modes.restarts:
-            limit = self._config.modes.restarts
-            self._set(self._target, "failed", "failed after {} restart{}: {}".format(
-                limit, "" if limit == 1 else "s", message) if limit else message)
-            return False
-        return True
+        """Under the lock: one more restart, or False when none is left (the mode is then failed)."""
+        failure = self.restarts.take(message)
+        if failure is not None:
+            self._set(self._target, "failed", failure)
+        return failure is None
 
     def _restart(self, gen, target, message):
         try:
             while True:
-                note = "restarting ({} of {}) after: {}".format(self._restarts, self._config.modes.restarts, message)
+                note = self.restarts.note(message)
                 with self._changed:
                     self._set(target, "starting", note)
-                if self._closing.wait(self.BACKOFF[min(self._restarts, len(self.BACKOFF)) - 1]):
+                if self._closing.wait(self.restarts.delay()):
                     return
                 self._stop_stack()
                 message = self._start(gen, target, note, relocalize=False)
@@ -315,7 +271,7 @@ class ModeManager:
         """At start-up: come back to the remembered mode (else the default); never raises."""
         if self._backend is None:
             return
-        target = self._remembered()
+        target = self.targets.remembered(*state_file.load(self._config.mode_state_file()))
         try:
             with self._changed:
                 self._begin(target, "starting", "starting " + target.describe())
@@ -323,19 +279,6 @@ class ModeManager:
             self._spawn(self._switch, gen, target)
         except Exception:
             log.exception("cannot restore the mode %s", target.describe())
-
-    def _remembered(self):
-        remembered, reason = state_file.load(self._config.mode_state_file())
-        if remembered is None:
-            log.info("no mode to come back to (%s): starting the default", reason)
-            target = default_target(self._config.stack_kind(), self._catalogue.exists(UPGRADED_MAP))
-            return self._target_of(target.mode, target.map, None) if target.map else target
-        mode, map_name = remembered
-        try:
-            return self._target_of(mode, map_name, None)
-        except (UnknownMap, BadMapName) as exc:
-            log.warning("cannot come back to the map %r: %s", map_name, exc)
-            return unusable_map_target(map_name, "is gone" if isinstance(exc, UnknownMap) else "has a bad name")
 
     def set_pose(self, pose):
         """Tell localization the robot is at ``pose`` (in the map frame); WrongMode when no map is in use.

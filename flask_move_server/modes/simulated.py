@@ -27,10 +27,10 @@ import logging
 import threading
 
 from flask_move_server.errors import BadRequest, ConfigError, StackFailed
+from flask_move_server.modes.targets import MODES
 
 log = logging.getLogger(__name__)
 
-MODES = ("idle", "mapping", "navigation")
 MAPPING_MARGIN = 1.0  # m of canvas around the true map, so the SLAM map never clips the flat
 CLIENT_WAIT = 2.0  # s: start() waits this long at most for move_base's clients (the navigator) to connect
 MAX_SCAN_RATE = 11.0  # scans integrated per real second at most, however fast the sim runs

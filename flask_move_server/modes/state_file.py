@@ -11,8 +11,7 @@ import os
 
 from flask_move_server import waypoints_file
 from flask_move_server.errors import WaypointFileError
-
-MODES = ("idle", "mapping", "navigation")
+from flask_move_server.modes.targets import MODES
 
 
 def save(path, mode, map_name):

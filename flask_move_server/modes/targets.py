@@ -1,12 +1,22 @@
 """Where a mode switch goes (:class:`Target`), and where the server goes at start-up without a choice.
 
-Pure: no rospy, no Flask.
+:class:`Targets` turns a request (a mode, a map name, a pose or a waypoint name) into a checked
+Target against the maps folder, before anything is stopped, and the remembered choice into the
+one to come back to. Pure: no rospy, no Flask.
 """
 
+import logging
+import os
 from dataclasses import dataclass
 from typing import Optional
 
+from flask_move_server.errors import BadMapName, BadRequest, UnknownMap
 from flask_move_server.geometry import Pose2D
+from flask_move_server.modes import relocalizing
+
+log = logging.getLogger(__name__)
+
+MODES = ("idle", "mapping", "navigation")
 
 OUTSIDE = "the navigation stack is started outside this server (modes.stack: none)"
 IDLE = "idle: no navigation stack runs; start mapping with POST /mode {\"mode\": \"mapping\"} (robotctl map start)"
@@ -48,3 +58,50 @@ def unusable_map_target(name, why):
     """The remembered map cannot be used (``why``: it is gone, its name is bad): idle, saying what to do."""
     return Target("idle", note="idle: the map {!r} used before the restart {}; GET /maps lists the saved maps, "
                                "POST /mode {{\"mode\": \"navigation\", \"map\": NAME}} uses one".format(name, why))
+
+
+class Targets:
+    """Checked targets on the maps folder ``catalogue``, for the server configured by ``config``."""
+
+    def __init__(self, config, catalogue):
+        self.config = config
+        self.catalogue = catalogue
+
+    def of(self, mode, map_name=None, pose=None):
+        """The Target of a request; BadRequest, BadMapName, UnknownMap (and the pose's errors) refuse."""
+        if mode not in MODES:
+            raise BadRequest("Unknown mode {!r}: use one of {}.".format(mode, ", ".join(MODES)))
+        if mode != "navigation" and (map_name is not None or pose is not None):
+            raise BadRequest("Only the navigation mode takes a 'map' and a 'pose'.")
+        yaml_path = None
+        if map_name is not None:
+            yaml_path = self.catalogue.yaml_path(map_name)  # BadMapName for a name no map can have
+            if not os.path.isfile(yaml_path):
+                raise self._unknown(map_name)
+        if isinstance(pose, str):
+            pose = relocalizing.waypoint_pose(self.waypoints_path(map_name), pose, map_name)
+        return Target(mode, map_name, yaml_path, pose)
+
+    def _unknown(self, name):
+        try:
+            self.catalogue.describe(name)
+        except UnknownMap as exc:
+            return exc
+        return UnknownMap("No map named {!r}.".format(name))
+
+    def waypoints_path(self, map_name):
+        """The waypoints file that goes with ``map_name`` (None: the single waypoints file)."""
+        return self.catalogue.waypoints_path(map_name) if map_name else self.config.waypoints.file
+
+    def remembered(self, remembered, reason):
+        """Where to come back to at start-up, from ``state_file.load``'s answer; never raises."""
+        if remembered is None:
+            log.info("no mode to come back to (%s): starting the default", reason)
+            target = default_target(self.config.stack_kind(), self.catalogue.exists(UPGRADED_MAP))
+            return self.of(target.mode, target.map) if target.map else target
+        mode, map_name = remembered
+        try:
+            return self.of(mode, map_name)
+        except (UnknownMap, BadMapName) as exc:
+            log.warning("cannot come back to the map %r: %s", map_name, exc)
+            return unusable_map_target(map_name, "is gone" if isinstance(exc, UnknownMap) else "has a bad name")
