@@ -32,7 +32,7 @@ class StopLaneDispatcher(ThreadedTaskDispatcher):
     def add_task(self, task):
         line = _request_line(task)  # once: this runs on the event loop's thread, for every request
         if line in STREAMS and self._streams is not None and self._streams.acquire(blocking=False):
-            thread = threading.Thread(target=self._serve_stream, args=(task,), name="waitress-event-stream",
+            thread = threading.Thread(target=self._serve, args=(task, self._stream_ended), name="waitress-event-stream",
                                       daemon=True)
             with self.lock:
                 self._stream_threads.add(thread)
@@ -47,25 +47,22 @@ class StopLaneDispatcher(ThreadedTaskDispatcher):
                 self.queue.appendleft(task)
                 self.queue_cv.notify()
                 return
-        threading.Thread(target=self._serve_spare, args=(task,), name="waitress-stop-lane", daemon=True).start()
+        threading.Thread(target=self._serve, args=(task, self._spares.release), name="waitress-stop-lane",
+                         daemon=True).start()
 
-    def _serve_spare(self, task):
+    def _serve(self, task, release):
+        """Serve ``task`` on this thread of its own, then give its lane's place back with ``release()``."""
         try:
             task.service()
         except BaseException:
             self.logger.exception("Exception when servicing %r", task)
         finally:
-            self._spares.release()
+            release()
 
-    def _serve_stream(self, task):
-        try:
-            task.service()
-        except BaseException:
-            self.logger.exception("Exception when servicing %r", task)
-        finally:
-            with self.lock:
-                self._stream_threads.discard(threading.current_thread())
-            self._streams.release()
+    def _stream_ended(self):
+        with self.lock:
+            self._stream_threads.discard(threading.current_thread())
+        self._streams.release()
 
     def join_streams(self, timeout):
         """Wait up to ``timeout`` s for the open streams' threads to end (their event bus is closed)."""
