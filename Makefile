@@ -55,8 +55,13 @@ DEBIAN_SKIPS := --ignore=tests/test_stack_launched.py --ignore=tests/test_modes_
 test-debian: $(DEBIAN_VENV)/.installed
 	$(DEBIAN_VENV)/bin/python -m pytest -p no:cacheprovider $(DEBIAN_SKIPS) $(PYTEST_ARGS)
 
+# The waypoints are copied once to build/run/, where the server also keeps mode.json and maps/.
+RUN_WAYPOINTS ?= build/run/waypoints.yaml
+
 run: setup
-	$(VENV)/bin/flask-move-server --host 127.0.0.1 --waypoints config/waypoints.example.yaml
+	@mkdir -p $(dir $(RUN_WAYPOINTS))
+	@test -f $(RUN_WAYPOINTS) || cp config/waypoints.example.yaml $(RUN_WAYPOINTS)
+	$(VENV)/bin/flask-move-server --host 127.0.0.1 --waypoints $(RUN_WAYPOINTS)
 
 # The simulated robot on the demo flat (make demo): its own ROS master, world and move_base stand-in.
 # Waypoints are copied once to build/demo/, so PUT /waypoints never edits the shipped file.

@@ -18,6 +18,7 @@ Prints markdown tables (docs/performance.md, section Simulation).
 import argparse
 import os
 import re
+import shutil
 import signal
 import statistics
 import subprocess
@@ -122,11 +123,13 @@ def sim_rows(drive_seconds):
     from tests.conftest import free_port, wait_for
 
     tmp = tempfile.mkdtemp()
+    waypoints = os.path.join(tmp, "waypoints.yaml")  # a copy: the server keeps mode.json and maps/ beside it
+    shutil.copy(os.path.join(ROOT, "config", "waypoints.demo.yaml"), waypoints)
     master = "http://127.0.0.1:{}".format(free_port())
     env = dict(os.environ, ROS_MASTER_URI=master, ROS_HOME=tmp, ROS_IP="127.0.0.1", PYTHONUNBUFFERED="1")
     server = subprocess.Popen(
         [sys.executable, "-m", "flask_move_server", "--sim", "--port", "0", "--no-mdns",
-         "--waypoints", os.path.join(ROOT, "config", "waypoints.demo.yaml")],
+         "--waypoints", waypoints],
         env=env, cwd=tmp, stderr=subprocess.PIPE, text=True)
     lines = []
     threading.Thread(target=lambda: lines.extend(server.stderr), daemon=True).start()
