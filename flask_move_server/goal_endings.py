@@ -25,9 +25,9 @@ def failure_sentence(state, target=None):
 
 
 def replaced_sentence(target=None):
-    """The sentence for a goal to ``target`` that a newer goal took the place of before it arrived."""
+    """The sentence for a goal to ``target`` that a newer goal took the place of while under way."""
     to = " to {!r}".format(target) if target else ""
-    return "The goal{} was replaced by a newer goal before the robot arrived.".format(to)
+    return "The goal{} was replaced by a newer goal.".format(to)
 
 
 def said_sentence(state, target, said):

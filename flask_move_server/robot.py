@@ -9,7 +9,6 @@ e-stop latch stops everything and refuses goals and teleop until released).
 
 from flask_move_server.drive.estop import EStop
 from flask_move_server.errors import NavigationFailed, ShuttingDown
-from flask_move_server.goal_endings import failure_sentence, replaced_sentence
 
 _SHUTTING_DOWN = "The server is shutting down: the robot was stopped. Send the command again once it is back."
 
@@ -37,24 +36,19 @@ class Robot:
         self._unless_latched_meanwhile()
         return seq
 
-    def wait(self, seq, timeout, target=None):
-        """Wait up to ``timeout`` s for goal ``seq`` (to ``target``); True when reached, False when under way.
+    def wait(self, seq, timeout):
+        """Wait up to ``timeout`` s for goal ``seq``; True when reached, False when still under way.
 
-        NavigationFailed names ``target``, the goal waited for, even when a newer goal has
-        taken its place (then: "replaced by a newer goal").
+        NavigationFailed says how it ended otherwise, naming its own target even when a newer
+        goal has taken its place since.
         """
-        state = self.navigator.wait(seq, timeout)
+        state, why = self.navigator.wait(seq, timeout)
         self._check_running()
         if state == "succeeded":
             return True
         if state == "active":
             return False
-        nav = self.navigator.status()
-        if nav["goal_id"] == seq:
-            raise NavigationFailed(state, nav.get("message") or failure_sentence(state, nav["target"]))
-        if state == "canceled":  # what Navigator.wait says of a goal a newer one replaced
-            raise NavigationFailed(state, replaced_sentence(target))
-        raise NavigationFailed(state, failure_sentence(state, target))  # it ended, then a newer one came
+        raise NavigationFailed(state, why)
 
     def navigation_status(self):
         """The goal's state as ``/status`` shows it under ``navigation`` (the pose is not read)."""

@@ -33,7 +33,7 @@ class FakeRobot:
         self.estop.refuse_motion("goals are")
         return self._navigation.start(goal)
 
-    def wait(self, seq, timeout, target=None):
+    def wait(self, seq, timeout):
         self.calls.append(("wait", seq, timeout))
         self._navigation.state = "succeeded"
         return True

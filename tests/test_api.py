@@ -9,8 +9,10 @@ import math
 import threading
 import time
 
+import pytest
 import requests
 
+from flask_move_server.errors import NavigationFailed
 from tests.conftest import serve, wait_for
 from tests.robot_fixtures import SEED, Recorder, publish_pose
 from tests.standins.move_base import ABORT_X, HOLD_X
@@ -95,7 +97,22 @@ def test_a_waiting_goto_replaced_by_a_newer_goal_names_its_own_place(client, rea
     waiting.join(10)
     body = answers[0].get_json()
     assert answers[0].status_code == 409 and body["error"] == "navigation_failed" and body["state"] == "canceled"
-    assert body["message"] == "The goal to 'far hall' was replaced by a newer goal before the robot arrived."
+    assert body["message"] == "The goal to 'far hall' was replaced by a newer goal."
+
+
+def test_a_goal_that_ended_before_a_newer_one_came_answers_its_own_end(client, ready_robot, move_base):
+    arrived = client.post("/goto", json={"name": "office"}).get_json()["goal_id"]
+    wait_for(lambda: client.get("/status").get_json()["navigation"]["state"] == "succeeded",
+             message="the goal to the office to succeed")
+    held = client.post("/goto", json={"x": HOLD_X, "y": 0}).get_json()["goal_id"]  # before a waiter woke
+    assert ready_robot.wait(arrived, 0) is True  # arrived: not "replaced"
+    client.post("/stop")
+    wait_for(lambda: client.get("/status").get_json()["navigation"]["state"] == "canceled")
+    client.post("/goto", json={"name": "dock"})
+    with pytest.raises(NavigationFailed) as failed:  # stopped, then replaced: canceled by /stop
+        ready_robot.wait(held, 0)
+    assert failed.value.state == "canceled"
+    assert str(failed.value) == "The goal was canceled before the robot arrived."
 
 
 def test_goto_an_unknown_name_is_404_with_close_names(client, ready_robot, move_base):

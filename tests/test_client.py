@@ -176,7 +176,7 @@ def test_goto_wait_exit_status_tells_how_the_goal_ended(live, capsys):
         replacer.join()
     # the server's words for a waiting /goto whose goal a newer one replaced
     assert capsys.readouterr().err.endswith(
-        "robotctl: The goal to 'forever' was replaced by a newer goal before the robot arrived.\n")
+        "robotctl: The goal to 'forever' was replaced by a newer goal.\n")
 
 
 def test_goto_unknown_waypoint_suggests_close_names(live, capsys):

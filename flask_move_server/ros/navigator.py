@@ -13,6 +13,7 @@ still sent), and a later word from move_base about it changes nothing.
 import logging
 import threading
 import time
+from collections import OrderedDict
 
 import actionlib
 import rospy
@@ -22,7 +23,7 @@ from geometry_msgs.msg import PoseStamped
 from move_base_msgs.msg import MoveBaseAction, MoveBaseActionGoal, MoveBaseGoal
 
 from flask_move_server.errors import NavigationUnavailable, RosUnavailable
-from flask_move_server.goal_endings import said_sentence
+from flask_move_server.goal_endings import failure_sentence, replaced_sentence, said_sentence
 from flask_move_server.ros.action_status import read_status_lightly
 from flask_move_server.ros.convert import pose_from_msg, pose_stamped, write_pose
 from flask_move_server.ros.direct import direct_publisher
@@ -36,6 +37,7 @@ IDLE, ACTIVE, CANCELING, SUCCEEDED, ABORTED, CANCELED, REJECTED = (
 )
 TERMINAL = (SUCCEEDED, ABORTED, CANCELED, REJECTED)
 UNDER_WAY = (ACTIVE, CANCELING)
+ENDS_KEPT = 16  # replaced goals whose ends are kept for a client still waiting on one
 
 _FROM_STATUS = {
     GoalStatus.SUCCEEDED: SUCCEEDED,
@@ -65,6 +67,7 @@ class Navigator:
         self._goal = None
         self._feedback_pose = None
         self._message = None
+        self._ends = OrderedDict()  # seq -> (state, sentence) of the goals a newer one replaced
         self._cancel_sent = None
         self._client = None
         self._readiness = None
@@ -99,6 +102,7 @@ class Navigator:
         self._check_reachable()
         with self._sending:
             with self._cond:
+                self._keep_end()
                 self._seq += 1
                 seq = self._seq
                 self._goal, self._state, self._feedback_pose, self._message = goal, ACTIVE, None, None
@@ -144,7 +148,12 @@ class Navigator:
             cancel_pub.publish(GoalID())
 
     def wait(self, seq, timeout):
-        """Block until goal ``seq`` ends or ``timeout`` passes; its state then."""
+        """Block until goal ``seq`` ends or ``timeout`` passes: ``(state, why)`` then.
+
+        ``why`` is the sentence for a goal that ended without arriving (None otherwise). A goal
+        a newer one replaced answers how it ended: ``canceled``, "replaced by a newer goal", when
+        it was still under way; its own end when it had ended (arrived, say) just before.
+        """
         deadline = time.monotonic() + timeout
         with self._cond:
             while self._seq == seq and self._state not in TERMINAL and not self._released:
@@ -152,7 +161,27 @@ class Navigator:
                 if remaining <= 0:
                     break
                 self._cond.wait(remaining)
-            return self._state if self._seq == seq else CANCELED
+            if self._seq != seq:
+                return self._ends.get(seq, (CANCELED, replaced_sentence()))
+            return self._state, self._why(self._state)
+
+    def _why(self, state):
+        """Lock held: the sentence for the current goal in ``state`` (None unless it failed)."""
+        if state in (IDLE, ACTIVE, SUCCEEDED):
+            return None
+        target = self._goal.target if self._goal else None
+        return self._message or self._unconfirmed_cancel() or failure_sentence(state, target)
+
+    def _keep_end(self):
+        """Lock held, a newer goal about to replace this one: keep how it ended for its waiting client."""
+        if not self._seq:
+            return
+        if self._state == ACTIVE:
+            self._ends[self._seq] = (CANCELED, replaced_sentence(self._goal.target if self._goal else None))
+        else:
+            self._ends[self._seq] = (self._state, self._why(self._state))
+        while len(self._ends) > ENDS_KEPT:
+            self._ends.popitem(last=False)
 
     def release_waiters(self):
         """Wake every :meth:`wait`, now and from now on: the server is stopping."""

@@ -39,7 +39,7 @@ def goto():
     body = {"status": "ok", "target": goal.target, "goal": goal.pose.as_dict(), "goal_id": seq}
     if wait is None:
         return jsonify(body), 202
-    reached = _robot().wait(seq, wait, goal.target)
+    reached = _robot().wait(seq, wait)
     body["navigation"] = _robot().navigation_status()
     return jsonify(body), 200 if reached else 202
 
