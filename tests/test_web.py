@@ -131,6 +131,8 @@ def test_an_unknown_path_answers_with_the_paths_the_api_has(client):
     for path in ("/goto", "/stop", "/waypoints", "/mode", "/maps", "/map", "/pose", "/estop", "/events"):
         assert path + "," in message or path + " (" in message
     assert "/static" not in message
+    long = client.get("/" + "x" * 5000).get_json()["message"]
+    assert len(long) < 400 and "/" + "x" * 79 + "…. " in long  # a long path is not echoed whole
 
 
 def test_a_control_character_in_a_url_name_is_a_bad_name_not_a_missing_endpoint(client):

@@ -45,6 +45,8 @@ STATUS = (
     (errors.MapNotReceived, 503),
 )
 
+PATH_SHOWN = 80  # characters of an unknown path quoted back in its 404
+
 _HTTP_CODES = {
     400: ("bad_request", "The request is malformed."),
     404: ("not_found", None),  # the message names the API's paths, read from the app's routes
@@ -97,10 +99,15 @@ def init_app(app):
             response.headers["Allow"] = ", ".join(exc.valid_methods)
         return response
 
+    paths = []  # the API's top-level paths, read from the routes at the first 404 (all are added by then)
+
     def _no_such_endpoint():
-        tops = sorted({"/" + rule.rule.split("/")[1] for rule in app.url_map.iter_rules()} - {"/", "/static"})
+        if not paths:
+            tops = {"/" + rule.rule.split("/")[1] for rule in app.url_map.iter_rules()}
+            paths.extend(sorted(tops - {"/", "/static"}))
+        shown = request.path if len(request.path) <= PATH_SHOWN else request.path[:PATH_SHOWN] + "…"
         return "No such endpoint: {}. The API has {} (GET /openapi.json describes each).".format(
-            request.path, ", ".join(tops))
+            shown, ", ".join(paths))
 
     @app.errorhandler(Exception)
     def _unexpected(exc):
