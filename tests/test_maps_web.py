@@ -120,8 +120,10 @@ def test_with_modes_off_the_map_an_outside_stack_publishes_is_saved(robot_config
     r = client.post("/maps", json={"name": "flat"})
     assert r.status_code == 201, r.get_json()
     assert files_in(catalogue.folder) == ["flat.pgm", "flat.waypoints.yaml", "flat.yaml"]
+    source.publish(room(wall_at=20))
     r = client.post("/maps", json={"name": "flat", "overwrite": True, "then": "navigation"})
-    assert r.status_code == 201 and r.get_json()["mode_error"]["error"] == "modes_off"  # saved; no switch
+    assert r.status_code == 409 and r.get_json()["error"] == "modes_off"  # it cannot switch: nothing saved
+    assert catalogue.load("flat").value(20, 15) == 0
 
 
 def test_saving_outside_mapping_mode_is_refused_and_writes_nothing(client, modes, catalogue):

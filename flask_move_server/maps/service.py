@@ -169,8 +169,10 @@ class MapService:
         """
         check_map_name(name)
         self._require_mapping()
-        if then and self.modes is None:
-            raise ModesOff("This server does not switch modes (no mode manager), so it cannot \"then\" switch.")
+        if then and not self._switches_modes():
+            raise ModesOff("This server does not start the navigation stack (modes.stack: none), so it cannot "
+                           "\"then\" switch to the map; save it without \"then\" and start navigation on it "
+                           "with your own launch file.")
         if not overwrite and self.catalogue.exists(name):
             raise MapExists("A map named {!r} is already saved; send \"overwrite\": true to replace it, "
                             "or pick another name.".format(name))
@@ -185,10 +187,13 @@ class MapService:
             result.update(self._switch_to(name, here))
         return result
 
+    def _switches_modes(self):
+        return self.modes is not None and self.modes.runs_stack
+
     def _require_mapping(self):
         if self.source is None:
             raise WrongMode("This server follows no map topic, so there is no map being made to save.")
-        if self.modes is None or not self.modes.runs_stack:
+        if not self._switches_modes():
             return  # the stack is run elsewhere (modes.stack: none): whatever publishes the map is saved
         mode = self.modes.status().get("mode")
         if mode != "mapping":
