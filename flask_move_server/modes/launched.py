@@ -23,11 +23,9 @@ from concurrent.futures import ThreadPoolExecutor
 from flask_move_server import children
 from flask_move_server.errors import StackFailed
 from flask_move_server.modes import child, readiness
+from flask_move_server.modes.targets import MODES
 
 log = logging.getLogger(__name__)
-
-MODES = ("mapping", "navigation")
-
 
 class LaunchedStack:
     """Runs one mode's launch file at a time; ``start`` blocks until ready, ``stop`` until all is gone."""
@@ -58,7 +56,7 @@ class LaunchedStack:
 
         ``on_exit(message)`` is called once, from a watcher thread, if the stack dies by itself later.
         """
-        if mode not in MODES + ("idle",):
+        if mode not in MODES:
             raise ValueError("unknown mode {!r}".format(mode))
         self.stop()
         self._sweep_orphans()

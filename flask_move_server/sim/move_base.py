@@ -32,8 +32,7 @@ from move_base_msgs.msg import MoveBaseAction, MoveBaseActionGoal, MoveBaseFeedb
 from nav_msgs.msg import Path
 
 from flask_move_server.errors import PlanningFailed
-from flask_move_server.ros import convert
-from flask_move_server.ros.convert import pose_from_msg, pose_stamped, twist
+from flask_move_server.ros.convert import path_message, pose_from_msg, pose_stamped, twist
 from flask_move_server.sim.follower import DONE, PathFollower
 from flask_move_server.sim.watches import ProgressWatch, ReplanWatch
 
@@ -211,7 +210,7 @@ class MoveBaseStandIn:
     def _publish_plan(self, points):
         self.plans += 1
         if self._plan_pub is not None:
-            self._plan_pub.publish(convert.path_message(points, self.frames.map, rospy.Time.now()))
+            self._plan_pub.publish(path_message(points, self.frames.map, rospy.Time.now()))
 
     def _feedback(self, server, target, pose):
         feedback = MoveBaseFeedback()

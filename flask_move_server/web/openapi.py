@@ -12,6 +12,7 @@ from flask import Blueprint, current_app, jsonify
 
 from flask_move_server import __version__
 from flask_move_server.maps.catalogue import MAP_NAME_RULE
+from flask_move_server.modes.targets import MODES
 from flask_move_server.waypoints import NAME_RULE, POSITION_LIMIT, YAW_LIMIT
 
 description = Blueprint("openapi", __name__)
@@ -122,7 +123,7 @@ def _waypoint_item():
 
 def _mode_paths(config):
     """``/mode`` (read, switch) and ``/pose`` (set the robot's pose): docs/api.md "Maps and modes"."""
-    mode = _object({"mode": {"enum": ["idle", "mapping", "navigation"]}, "map": {"type": "string", "nullable": True},
+    mode = _object({"mode": {"enum": list(MODES)}, "map": {"type": "string", "nullable": True},
                     "state": {"enum": ["starting", "running", "stopping", "failed"]},
                     "since": {"type": "string", "format": "date-time"}, "message": {"type": "string"}},
                    ["mode", "map", "state", "since", "message"])
@@ -131,7 +132,7 @@ def _mode_paths(config):
     by_name = _object({"name": _name("a waypoint's name")}, ["name"])
     wait = {"type": "number", "minimum": 0, "maximum": config.modes.stop_timeout + config.modes.start_timeout,
             "description": "seconds to wait for the mode to run before answering"}
-    switch = _object({"mode": {"enum": ["idle", "mapping", "navigation"]},
+    switch = _object({"mode": {"enum": list(MODES)},
                       "map": _name("navigation: a saved map's name (none: the stack's own map)"),
                       "pose": {"oneOf": [pose, by_name], "description": "navigation: where the robot is"},
                       "wait": wait}, ["mode"])
