@@ -211,9 +211,16 @@ class Server:
             raise SystemExit(self.exit_code)
 
     def fatal(self, reason):
-        """Called from any thread: stop the server with a non-zero exit status."""
+        """Called from any thread: stop the server with a non-zero exit status.
+
+        3 (systemd restarts it) when the master was replaced; 1 when another server holds the
+        node's name (restarting cannot help until it stops).
+        """
+        from flask_move_server.ros.node import NAME_IN_USE
+
         log.error("stopping: %s", reason)
-        self.exit_code = EXIT_MASTER_REPLACED
+        in_use = getattr(getattr(self, "_node", None), "state", None) == NAME_IN_USE
+        self.exit_code = EXIT_FAILURE if in_use else EXIT_MASTER_REPLACED
         os.kill(os.getpid(), signal.SIGTERM)
 
     def close(self):

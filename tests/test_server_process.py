@@ -1,12 +1,15 @@
 """The server as a user runs it: a real process, a real master that comes and goes, signals."""
 
+import os
 import signal
+import subprocess
+import sys
 import time
 
 import pytest
 import requests
 
-from tests.conftest import ServerProcess, free_port, start_master, stop_process, wait_for
+from tests.conftest import ServerProcess, default_sigint, free_port, start_master, stop_process, wait_for
 
 
 def start_server(tmp_path, master_port, *extra):
@@ -104,16 +107,49 @@ def test_roslaunch_setting_a_run_id_on_the_running_master_is_not_a_new_master(se
         stop_process(master)
 
 
-def test_a_second_server_taking_the_node_name_stops_the_first_saying_why(server_factory, master_port):
-    """rospy shuts a node down when another registers its name: the first server must not claim 'connected'."""
+def test_a_second_server_on_the_same_master_refuses_and_leaves_the_first_running(server_factory, master_port):
+    """rospy would shut the first server's node down for the second: the robot the first drives must not be stranded."""
     master = start_master(master_port)
     try:
         first = server_factory(master_port)
         wait_for(lambda: first.get("/health").json()["ros"] == "connected", timeout=30)
         second = server_factory(master_port)
+        assert second.proc.wait(20) == 1, "the second server did not refuse"
+        assert second.find(r"another node runs as /flask_move_server .*\(pid \d+\).*systemctl stop flask-move-server")
+        time.sleep(1.5)  # two master checks: the first would have been shut down by now
+        assert first.proc.poll() is None and first.get("/health").json()["ros"] == "connected"
+    finally:
+        stop_process(master)
+
+
+def test_a_node_that_takes_the_name_later_stops_the_server_saying_why(server_factory, master_port, tmp_path):
+    """Any other node registering our name makes rospy shut ours down: the server must not claim 'connected'."""
+    master = start_master(master_port)
+    usurper = None
+    try:
+        server = server_factory(master_port)
+        wait_for(lambda: server.get("/health").json()["ros"] == "connected", timeout=30)
+        env = dict(os.environ, ROS_MASTER_URI=server.master_uri, ROS_HOME=str(tmp_path), ROS_IP="127.0.0.1")
+        usurper = subprocess.Popen([sys.executable, "-c", "import rospy; rospy.init_node('flask_move_server'); "
+                                    "rospy.spin()"], env=env, preexec_fn=default_sigint)
+        assert server.proc.wait(20) == 3, "the server kept serving without its ROS node"
+        assert server.find("another node registered as /flask_move_server")
+    finally:
+        if usurper is not None:
+            stop_process(usurper)
+        stop_process(master)
+
+
+def test_a_dead_servers_leftover_registration_does_not_block_the_next(server_factory, master_port):
+    """A server killed with SIGKILL stays registered with the master; the next one (systemd's restart) takes over."""
+    master = start_master(master_port)
+    try:
+        first = server_factory(master_port)
+        wait_for(lambda: first.get("/health").json()["ros"] == "connected", timeout=30)
+        first.proc.kill()
+        first.proc.wait(10)
+        second = server_factory(master_port)
         wait_for(lambda: second.get("/health").json()["ros"] == "connected", timeout=30)
-        assert first.proc.wait(20) == 3, "the first server kept serving without its ROS node"
-        assert first.find("another node registered as /flask_move_server")
-        assert second.get("/health").json()["ros"] == "connected"
+        assert second.proc.poll() is None
     finally:
         stop_process(master)

@@ -68,3 +68,19 @@ def private_params(node_name, uri=None, timeout=2.0):
     except (OSError, xmlrpc.client.Error):
         return None
     return value if code == 1 and isinstance(value, dict) else {}
+
+
+def live_node(caller_id, node_name, uri=None, timeout=2.0):
+    """``(pid, node_uri)`` of a node registered as ``node_name`` that answers, else None.
+
+    A node that died without unregistering (SIGKILL, a power cut) stays registered with the master
+    until another takes its name; its XML-RPC server no longer answers, so it reads as None here.
+    """
+    try:
+        code, _, node_uri = proxy(uri, timeout).lookupNode(caller_id, node_name)
+        if code != 1:
+            return None
+        code, _, pid = proxy(node_uri, timeout).getPid(caller_id)
+    except (OSError, xmlrpc.client.Error):
+        return None
+    return (pid, node_uri) if code == 1 else None

@@ -13,9 +13,14 @@ The master is then watched. When it stops answering, the node is ``lost``
 master answers (its pid, or its ``/run_id``, changed) this node is not registered
 with it and rospy cannot re-register, so ``on_fatal`` is called: the server
 exits non-zero and systemd restarts it cleanly.
+
+A node already registered under this node's name that still answers (another server on the
+same master) is never replaced: rospy would shut *it* down, and with it the robot its owner is
+driving. This node then stops at once (state ``name_in_use``, ``on_fatal``) saying so.
 """
 
 import logging
+import sys
 import threading
 import time
 
@@ -26,6 +31,7 @@ log = logging.getLogger(__name__)
 ast_guard.serialise_ast_parse()  # rospy's threads format tracebacks while an app may be parsing routes
 
 WAITING, CONNECTED, LOST, NEW_MASTER, CLOSED = "waiting", "connected", "lost", "new_master", "closed"
+NAME_IN_USE = "name_in_use"  # another live node has this node's name: this one never registers
 DEGRADED = "degraded"  # connected, but a part's set-up failed (see RosNode.failed_parts)
 
 
@@ -124,7 +130,7 @@ class RosNode:
             self._identity = master.identity(self.name, timeout=1.0)
             if self._identity is None:
                 self._stop.wait(0.5)
-        if self._stop.is_set():
+        if self._stop.is_set() or self._name_in_use():
             return
         self._init_rospy()
         # Watch from a thread of its own: a callback registering topics with a master that
@@ -155,6 +161,28 @@ class RosNode:
             log.exception("the ROS set-up of %s failed; /health says %r until the server restarts", name, DEGRADED)
             with self._lock:
                 self._failed_parts.append({"part": name, "error": "{}: {}".format(type(exc).__name__, exc)})
+
+    def _name_in_use(self):
+        """True (and on_fatal called) when a live node already has the name this node would register."""
+        import rospy
+
+        if rospy.core.is_initialized():
+            return False
+        name = _resolved_node_name(self.name)
+        other = master.live_node(name, name, timeout=1.0)
+        if other is None:
+            return False
+        self.state = NAME_IN_USE
+        message = (
+            "another node runs as {} with the ROS master at {} (pid {}): a second server on the same master "
+            "would shut it down and strand the robot it drives. Stop that one first (on the robot: sudo "
+            "systemctl stop flask-move-server), or give this server its own ros.node_name or ROS_MASTER_URI"
+            .format(name, self.master_uri, other[0])
+        )
+        log.error(message)
+        if self.on_fatal is not None:
+            self.on_fatal(message)
+        return True
 
     def _init_rospy(self):
         import rospy
@@ -237,3 +265,13 @@ def _rospy_shut_down():
     import rospy
 
     return rospy.core.is_shutdown()
+
+
+def _resolved_node_name(name):
+    """The global name rospy.init_node(``name``) registers: ``__name:=`` and the namespace applied."""
+    import rosgraph.names
+
+    name = rosgraph.names.load_mappings(sys.argv).get("__name", name)
+    if name.startswith("/"):
+        return name
+    return rosgraph.names.ns_join(rosgraph.names.get_ros_namespace(argv=sys.argv), name)
