@@ -12,6 +12,7 @@ restarts the server).
 """
 
 import contextlib
+import errno
 import logging
 import os
 import signal
@@ -263,7 +264,7 @@ def main(argv=None):
         return _refuse("cannot drive the motors: {}".format(exc), EXIT_FAILURE)
     except OSError as exc:
         server.close()
-        return _refuse("cannot start: {}".format(exc), EXIT_FAILURE)
+        return _refuse(_cannot_start(exc, config.server), EXIT_FAILURE)
     except SystemExit:
         server.close()
         return server.exit_code
@@ -271,6 +272,15 @@ def main(argv=None):
         return server.serve()
     except SystemExit:
         return server.exit_code
+
+
+def _cannot_start(exc, server_config):
+    """Why the server could not start, and for a taken port, what to do."""
+    if exc.errno == errno.EADDRINUSE:
+        return ("cannot listen on {}:{}: the port is in use (another flask-move-server or make demo?); stop it, "
+                "or pick another port with --port (make demo DEMO_PORT=5001)".format(server_config.host,
+                                                                                  server_config.port))
+    return "cannot start: {}".format(exc)
 
 
 def _refuse(reason, status):

@@ -1,6 +1,7 @@
 """Configuration: defaults, the documented example, validation that names file, key and reason."""
 
 import os
+import socket
 
 import pytest
 
@@ -130,6 +131,19 @@ def test_the_server_refuses_the_network_without_a_token():
     _, err = proc.communicate(timeout=30)
     assert proc.returncode == 2
     assert "refusing to serve 0.0.0.0 without a token" in err and "--insecure" in err
+
+
+def test_a_taken_port_is_named_with_what_to_do(tmp_path):
+    with socket.socket() as taken:
+        taken.bind(("127.0.0.1", 0))
+        taken.listen(1)
+        port = taken.getsockname()[1]
+        proc = run_cli("--host", "127.0.0.1", "--port", str(port), "--no-mdns",
+                       "--waypoints", str(tmp_path / "waypoints.yaml"), env={"ROS_MASTER_URI": "http://127.0.0.1:9"})
+        _, err = proc.communicate(timeout=30)
+    assert proc.returncode == 1
+    assert "cannot listen on 127.0.0.1:{}: the port is in use".format(port) in err and "--port" in err
+    assert "Traceback" not in err
 
 
 def test_sim_serves_this_machine_only_even_with_a_config_file(tmp_path):
