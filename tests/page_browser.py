@@ -142,13 +142,24 @@ class Finger:
     """One finger on the touch screen (CDP touch events, so the page sees pointerType "touch")."""
 
     def __init__(self, page, point):
+        self.page = page
         self.session = page.context.new_cdp_session(page)
+        self.point = point
         _touch(self.session, "touchStart", point)
 
     def move(self, point):
+        self.point = point
         _touch(self.session, "touchMove", point)
 
     def lift(self):
+        """Lift the finger where it rests, as a person does after a drag.
+
+        A move and a lift in the same instant is a flick: Chrome starts a fling, and the next tap
+        anywhere only stops that fling, with no click (a tap on a button after a drag did nothing,
+        1 run in 2). So the finger rests a moment at its last point first.
+        """
+        self.page.wait_for_timeout(60)
+        _touch(self.session, "touchMove", self.point)
         self.session.send("Input.dispatchTouchEvent", {"type": "touchEnd", "touchPoints": []})
         self.session.detach()
 
