@@ -7,7 +7,7 @@ a small test database. What ROS does with a request (goals reaching move_base, v
 """
 
 from flask_move_server.drive.estop import EStop
-from flask_move_server.errors import NoPose
+from flask_move_server.errors import NavigationUnavailable, NoPose
 
 IDLE = "idle"
 
@@ -21,6 +21,8 @@ class FakeRobot:
     ``current_pose`` gives (a Pose2D), or None for a robot that does not know where it is.
     """
 
+    move_base_ready = True  # False: goals answer 503 move_base_unavailable, as with no move_base
+
     def __init__(self, pose=None):
         self.calls = []
         self.pose = pose
@@ -30,6 +32,8 @@ class FakeRobot:
 
     def goto(self, goal):
         self.calls.append(("goto", goal))
+        if not self.move_base_ready:
+            raise NavigationUnavailable("move_base does not answer on the action '/move_base'.")
         self.estop.refuse_motion("goals are")
         return self._navigation.start(goal)
 

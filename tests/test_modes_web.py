@@ -143,3 +143,14 @@ def test_a_server_without_a_stack_says_so_and_refuses_switches(robot_config, sto
     assert "modes.stack: none" in mode["message"]
     r = client.post("/mode", json={"mode": "mapping"})
     assert r.status_code == 409 and r.get_json()["error"] == "modes_off"
+
+
+def test_a_goal_while_idle_says_to_start_navigation_not_roslaunch(robot_config, store, modes):
+    robot = FakeRobot()
+    robot.move_base_ready = False  # idle: no move_base runs
+    client = create_app(robot_config, robot, store, modes=modes).test_client()
+    r = client.post("/goto", json={"name": "kitchen"})
+    assert r.status_code == 503 and r.get_json()["error"] == "move_base_unavailable"
+    assert r.get_json()["message"].startswith("The robot is idle") and "robotctl map use" in r.get_json()["message"]
+    assert "roslaunch" not in r.get_json()["message"]
+
