@@ -5,11 +5,13 @@ server to wait ``maps.save_timeout`` for a map and write a large one. The mode
 commands (``map start``, ``map use``) join the same ``map`` parser.
 """
 
+import contextlib
 import sys
 from urllib.parse import quote
 
 from flask_move_server import client_modes
 from flask_move_server.api_client import ExitStatus
+from flask_move_server.errors import ClientError
 
 SAVE_TIMEOUT = 60.0  # s: the server waits up to maps.save_timeout (10 s) for a map, then writes it
 
@@ -30,7 +32,8 @@ def cmd_save(client, args):
         body["overwrite"] = True
     if args.then_navigate:
         body["then"] = "navigation"
-    answer = client.request("POST", "/maps", body, timeout=max(client.timeout, SAVE_TIMEOUT))
+    with _in_robotctl_words(args.name):
+        answer = client.request("POST", "/maps", body, timeout=max(client.timeout, SAVE_TIMEOUT))
     info = answer.get("map") or {}
     _say("saved map {} ({}{}).".format(args.name, _size(info), ", with a copy of the waypoints"
                                        if answer.get("adopted_waypoints") else ""))
@@ -54,9 +57,34 @@ def cmd_list(client, args):
 
 
 def cmd_rm(client, args):
-    client.delete(map_path(args.name))
+    with _in_robotctl_words(args.name):
+        client.delete(map_path(args.name))
     _say("removed map {} (its image and waypoints too).".format(args.name))
     return ExitStatus.OK
+
+
+# The server's refusals that name an HTTP field or route, said with robotctl's own commands.
+_ADVICE = {
+    "map_exists": "a map named {name} is saved already: 'robotctl map save {name} --overwrite' replaces it, "
+                  "or pick another name",
+    "map_in_use": "{name} is the map in use: switch to another first ('robotctl map use OTHER', or "
+                  "'robotctl map start' to map again)",
+}
+
+
+@contextlib.contextmanager
+def _in_robotctl_words(name):
+    """Around a map request: a refusal the table above knows is told in robotctl's words."""
+    try:
+        yield
+    except ClientError as exc:
+        code = (getattr(exc, "body", None) or {}).get("error")
+        if code in _ADVICE:
+            raise ClientError(_ADVICE[code].format(name=name), exc.exit_status) from None
+        said = str(exc).replace("GET /maps lists the saved maps", "'robotctl map list' lists them")
+        if said == str(exc):
+            raise
+        raise ClientError(said, exc.exit_status) from None
 
 
 ACTIONS = {"save": cmd_save, "list": cmd_list, "rm": cmd_rm, "start": client_modes.cmd_map,

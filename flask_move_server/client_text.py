@@ -45,6 +45,8 @@ def describe_status(data, url):
     ros = data.get("ros") or {}
     pose = data.get("pose")
     lines = ["robot:      {} (ROS {})".format(url, ros.get("state", "?"))]
+    if data.get("mode"):
+        lines.append("mode:       " + _describe_mode(data["mode"]))
     if pose:
         lines.append("pose:       {} in {}, {:.1f} s old ({})".format(
             xy_yaw(pose), pose.get("frame"), pose.get("age") or 0.0, pose.get("source", "tf")))
@@ -61,6 +63,17 @@ def describe_status(data, url):
     if problem:
         lines.append("waypoints:  PROBLEM: " + problem)
     return lines
+
+
+def _describe_mode(mode):
+    """``navigation on flat``, ``mapping (starting)``, ``idle``; a failed stack with why."""
+    text = str(mode.get("mode"))
+    if mode.get("mode") == "navigation":
+        text += " on " + (mode["map"] if mode.get("map") else "the stack's own map")
+    state = mode.get("state")
+    if state == "failed":
+        return "{} FAILED: {}".format(text, mode.get("message") or "see GET /mode")
+    return text if state == "running" else "{} ({})".format(text, state)
 
 
 def _describe_navigation(nav):

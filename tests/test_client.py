@@ -15,7 +15,7 @@ import pytest
 import rospy
 from geometry_msgs.msg import PoseWithCovarianceStamped
 
-from flask_move_server import client
+from flask_move_server import client, client_text
 from flask_move_server.api_client import ExitStatus
 from tests.conftest import ROOT, default_sigint, serve, stop_process, wait_for
 from tests.standins.move_base import ABORT_X, HOLD_X, ScriptedMoveBase
@@ -228,14 +228,27 @@ def test_estop_latches_until_estop_release(live, capsys):
     assert robotctl(live, "estop", "now") == ExitStatus.USAGE
 
 
+@pytest.mark.parametrize("mode,line", [
+    ({"mode": "idle", "map": None, "state": "running"}, "idle"),
+    ({"mode": "navigation", "map": "flat", "state": "running"}, "navigation on flat"),
+    ({"mode": "mapping", "map": None, "state": "starting"}, "mapping (starting)"),
+    ({"mode": "mapping", "map": None, "state": "failed", "message": "gmapping is not installed"},
+     "mapping FAILED: gmapping is not installed"),
+])
+def test_status_says_the_mode_and_map(mode, line):
+    lines = client_text.describe_status({"ros": {"state": "connected"}, "mode": mode}, "http://robot.local:5000")
+    assert lines[1] == "mode:       " + line
+
+
 def test_status_summary_and_json(live, capsys):
     assert robotctl(live, "goto", "forever") == 0
     capsys.readouterr()
     assert robotctl(live, "status") == 0
     lines = capsys.readouterr().out.splitlines()
     assert lines[0] == "robot:      {} (ROS connected)".format(live.url)
-    assert lines[1].startswith("pose:       unknown")
-    assert lines[2].startswith("navigation: active -> forever")
+    assert lines[1] == "mode:       navigation on the stack's own map"  # modes off: the stack runs outside
+    assert lines[2].startswith("pose:       unknown")
+    assert lines[3].startswith("navigation: active -> forever")
     assert robotctl(live, "status", "--json") == 0
     data = json.loads(capsys.readouterr().out)
     assert data["navigation"]["target"] == "forever"

@@ -358,7 +358,7 @@ def test_robotctl_map_save_list_rm(app, capsys, modes, catalogue):
         assert robotctl.main(["--url", url, "map", "save", "flat"]) == 0
         assert "saved map flat (2.0 x 1.5, with a copy of the waypoints)" in capsys.readouterr().out
         assert robotctl.main(["--url", url, "map", "save", "flat"]) == 1
-        assert "already saved" in capsys.readouterr().err
+        assert "'robotctl map save flat --overwrite' replaces it" in capsys.readouterr().err  # its words, not HTTP's
         assert robotctl.main(["--url", url, "map", "save", "flat", "--overwrite", "--then-navigate"]) == 0
         assert "switching to navigation on flat" in capsys.readouterr().out
         assert modes.calls == [("switch", "navigation", "flat")]
@@ -366,7 +366,9 @@ def test_robotctl_map_save_list_rm(app, capsys, modes, catalogue):
         out = capsys.readouterr().out.splitlines()
         assert out[1].startswith("* flat") and out[1].split()[2:6] == ["2.0", "x", "1.5", "3"]
         assert robotctl.main(["--url", url, "map", "rm", "flat"]) == 1
-        assert "in use" in capsys.readouterr().err
+        assert "flat is the map in use: switch to another first ('robotctl map use OTHER'" in capsys.readouterr().err
+        assert robotctl.main(["--url", url, "map", "rm", "garage"]) == 5
+        assert "No map named 'garage'. 'robotctl map list' lists them." in capsys.readouterr().err
         modes.switch("mapping")
         assert robotctl.main(["--url", url, "map", "rm", "flta"]) == 5
         assert "Did you mean: 'flat'" in capsys.readouterr().err
