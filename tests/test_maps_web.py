@@ -126,6 +126,12 @@ def test_with_modes_off_the_map_an_outside_stack_publishes_is_saved(robot_config
     assert catalogue.load("flat").value(20, 15) == 0
 
 
+def test_saving_without_a_name_says_the_name_is_required(client, catalogue):
+    r = client.post("/maps", json={})
+    assert error_of(r) == (400, "bad_request") and r.get_json()["message"] == "Field 'name' is required."
+    assert files_in(catalogue.folder) == []
+
+
 def test_saving_outside_mapping_mode_is_refused_and_writes_nothing(client, modes, catalogue):
     modes.mode = "navigation"
     status, code = error_of(client.post("/maps", json={"name": "flat"}))

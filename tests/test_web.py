@@ -135,6 +135,11 @@ def test_an_unknown_path_answers_with_the_paths_the_api_has(client):
     assert len(long) < 400 and "/" + "x" * 79 + "…. " in long  # a long path is not echoed whole
 
 
+def test_a_body_that_is_not_json_shows_what_to_send(client):
+    message = client.post("/goto", data="name=kitchen").get_json()["message"]
+    assert message.startswith("The body is not valid JSON (") and message.endswith('e.g. {"name": "kitchen"}.')
+
+
 def test_a_control_character_in_a_url_name_is_a_bad_name_not_a_missing_endpoint(client):
     r = client.put("/waypoints/kitchen%0Adoor", json={"x": 1, "y": 2, "yaw": 0})
     assert r.status_code == 400 and r.get_json()["error"] == "bad_waypoint"

@@ -41,7 +41,7 @@ def json_object(allowed, required=True):
     except RecursionError:
         raise BadRequest("The JSON body is nested too deeply.")
     except (UnicodeDecodeError, ValueError) as exc:
-        raise BadRequest("The body is not valid JSON: {}.".format(exc))
+        raise BadRequest("The body is not valid JSON ({}): send a JSON object, e.g. {}.".format(exc, _example(allowed)))
     if not isinstance(data, dict):
         raise BadRequest("The body must be a JSON object, e.g. {}.".format(_example(allowed)))
     unknown = sorted(set(data) - set(allowed))
@@ -89,7 +89,10 @@ def number(data, key, minimum=None, maximum=None):
 
 
 def text(data, key):
-    value = data.get(key)
+    """``data[key]`` as text, else BadRequest naming the field."""
+    if key not in data:
+        raise BadRequest("Field {!r} is required.".format(key))
+    value = data[key]
     if not isinstance(value, str):
         raise BadRequest("Field {!r} must be text, got {}.".format(key, json.dumps(value)[:40]))
     return value
@@ -101,6 +104,7 @@ _EXAMPLES = {
     frozenset({"x", "y", "yaw", "from"}): '{"x": 1.0, "y": 2.0, "yaw": 0.0} or {"from": "current"}',
     frozenset({"mode", "map", "pose", "wait"}): '{"mode": "navigation", "map": "flat"}',
     frozenset({"x", "y", "yaw", "name"}): '{"x": 1.0, "y": 2.0, "yaw": 0.0} or {"name": "dock"}',
+    frozenset({"name", "overwrite", "then"}): '{"name": "flat"}',
 }
 
 
