@@ -105,8 +105,9 @@ def xy_yaw(pose):
     """``x 1.00, y 2.00, yaw 0.50 rad (29 deg)`` of a pose or goal dict; ``?`` when missing."""
     if not pose:
         return "?"
-    return "x {:.2f}, y {:.2f}, yaw {:.2f} rad ({:.0f} deg)".format(
-        pose.get("x", 0.0), pose.get("y", 0.0), pose.get("yaw", 0.0), math.degrees(pose.get("yaw", 0.0)))
+    x, y, yaw = (round(pose.get(k, 0.0), 2) + 0.0 for k in ("x", "y", "yaw"))  # + 0.0: no "-0.00"
+    degrees = round(math.degrees(pose.get("yaw", 0.0))) + 0.0
+    return "x {:.2f}, y {:.2f}, yaw {:.2f} rad ({:.0f} deg)".format(x, y, yaw, degrees)
 
 
 def waypoint_table(waypoints):

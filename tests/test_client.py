@@ -240,6 +240,11 @@ def test_status_says_the_mode_and_map(mode, line):
     assert lines[1] == "mode:       " + line
 
 
+def test_a_pose_a_hair_below_zero_reads_as_zero():
+    assert client_text.xy_yaw({"x": -0.001, "y": 2.0, "yaw": -0.0001}) == "x 0.00, y 2.00, yaw 0.00 rad (0 deg)"
+    assert client_text.xy_yaw({"x": 1.0, "y": -2.5, "yaw": -1.5708}) == "x 1.00, y -2.50, yaw -1.57 rad (-90 deg)"
+
+
 def test_status_summary_and_json(live, capsys):
     assert robotctl(live, "goto", "forever") == 0
     capsys.readouterr()

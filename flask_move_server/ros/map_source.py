@@ -139,8 +139,8 @@ class MapSource:
         return version, self._grid(version, raw)
 
     def _no_map(self):
-        return NoMap("No map is published on {} now: the robot is idle, or its mapping or navigation is "
-                     "still starting (GET /mode says which).".format(self.topic))
+        return NoMap("No map is published on the topic {} now: the robot is idle, or its mapping or navigation "
+                     "is still starting (GET /mode says which).".format(rospy.resolve_name(self.topic)))
 
     def latest(self, timeout):
         """``(version, Grid)`` of the map held now, waiting up to ``timeout`` s for one; MapNotReceived else."""
