@@ -162,7 +162,7 @@ class Navigator:
                     break
                 self._cond.wait(remaining)
             if self._seq != seq:
-                return self._ends.get(seq, (CANCELED, replaced_sentence()))
+                return _replaced_end(*self._ends.get(seq, (ACTIVE, None, None)))
             return self._state, self._why(self._state)
 
     def _why(self, state):
@@ -173,15 +173,14 @@ class Navigator:
         return self._message or self._unconfirmed_cancel() or failure_sentence(state, target)
 
     def _keep_end(self):
-        """Lock held, a newer goal about to replace this one: keep how it ended for its waiting client."""
-        if not self._seq:
-            return
-        if self._state == ACTIVE:
-            self._ends[self._seq] = (CANCELED, replaced_sentence(self._goal.target if self._goal else None))
-        else:
-            self._ends[self._seq] = (self._state, self._why(self._state))
-        while len(self._ends) > ENDS_KEPT:
-            self._ends.popitem(last=False)
+        """Lock held, a newer goal about to replace this one: keep how it ended for its waiting client.
+
+        Only the facts (on the way to the publish); the sentence is made if someone asks.
+        """
+        if self._seq:
+            self._ends[self._seq] = (self._state, self._message, self._goal.target if self._goal else None)
+            if len(self._ends) > ENDS_KEPT:
+                self._ends.popitem(last=False)
 
     def release_waiters(self):
         """Wake every :meth:`wait`, now and from now on: the server is stopping."""
@@ -342,3 +341,12 @@ def _settle_last_goal(client, patience=1.0):
     with client.done_condition:
         while client.simple_state != SimpleGoalState.DONE and time.monotonic() < deadline:
             client.done_condition.wait(0.05)
+
+
+def _replaced_end(state, message, target):
+    """``(state, why)`` of a goal a newer one replaced, from the facts :meth:`Navigator._keep_end` kept."""
+    if state in (ACTIVE, IDLE):  # still under way when replaced
+        return CANCELED, replaced_sentence(target)
+    if state == SUCCEEDED:
+        return state, None
+    return state, message or failure_sentence(state, target)
