@@ -39,3 +39,14 @@ def said_sentence(state, target, said):
     to = " to {!r}".format(target) if target else ""
     verb = "rejected" if state == "rejected" else "aborted"
     return "move_base {} the goal{}: {}{}".format(verb, to, said, "" if said.endswith((".", "!", "?")) else ".")
+
+
+def replaced_end(state, message, target):
+    """``(state, sentence)`` for a waiting client of a goal a newer one replaced, from the goal's last
+    ``state`` and ``message`` then: under way (``active``) reads ``canceled``, "replaced by a newer
+    goal"; one that had ended answers its own end (no sentence when it arrived)."""
+    if state in ("active", "idle"):
+        return "canceled", replaced_sentence(target)
+    if state == "succeeded":
+        return state, None
+    return state, message or failure_sentence(state, target)

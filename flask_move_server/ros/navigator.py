@@ -23,7 +23,7 @@ from geometry_msgs.msg import PoseStamped
 from move_base_msgs.msg import MoveBaseAction, MoveBaseActionGoal, MoveBaseGoal
 
 from flask_move_server.errors import NavigationUnavailable, RosUnavailable
-from flask_move_server.goal_endings import failure_sentence, replaced_sentence, said_sentence
+from flask_move_server.goal_endings import failure_sentence, replaced_end, said_sentence
 from flask_move_server.ros.action_status import read_status_lightly
 from flask_move_server.ros.convert import pose_from_msg, pose_stamped, write_pose
 from flask_move_server.ros.direct import direct_publisher
@@ -162,7 +162,7 @@ class Navigator:
                     break
                 self._cond.wait(remaining)
             if self._seq != seq:
-                return _replaced_end(*self._ends.get(seq, (ACTIVE, None, None)))
+                return replaced_end(*self._ends.get(seq, (ACTIVE, None, None)))
             return self._state, self._why(self._state)
 
     def _why(self, state):
@@ -175,7 +175,7 @@ class Navigator:
     def _keep_end(self):
         """Lock held, a newer goal about to replace this one: keep how it ended for its waiting client.
 
-        Only the facts (on the way to the publish); the sentence is made if someone asks.
+        Only the facts (on the way to the publish); goal_endings.replaced_end makes the answer if someone asks.
         """
         if self._seq:
             self._ends[self._seq] = (self._state, self._message, self._goal.target if self._goal else None)
@@ -341,12 +341,3 @@ def _settle_last_goal(client, patience=1.0):
     with client.done_condition:
         while client.simple_state != SimpleGoalState.DONE and time.monotonic() < deadline:
             client.done_condition.wait(0.05)
-
-
-def _replaced_end(state, message, target):
-    """``(state, why)`` of a goal a newer one replaced, from the facts :meth:`Navigator._keep_end` kept."""
-    if state in (ACTIVE, IDLE):  # still under way when replaced
-        return CANCELED, replaced_sentence(target)
-    if state == SUCCEEDED:
-        return state, None
-    return state, message or failure_sentence(state, target)
