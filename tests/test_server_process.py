@@ -107,49 +107,47 @@ def test_roslaunch_setting_a_run_id_on_the_running_master_is_not_a_new_master(se
         stop_process(master)
 
 
-def test_a_second_server_on_the_same_master_refuses_and_leaves_the_first_running(server_factory, master_port):
+@pytest.fixture
+def master(master_port):
+    """A real ROS master on ``master_port`` for the test, stopped after it."""
+    process = start_master(master_port)
+    yield process
+    stop_process(process)
+
+
+def connected(server):
+    """``server`` once its /health says it is connected to the master."""
+    wait_for(lambda: server.get("/health").json()["ros"] == "connected", timeout=30)
+    return server
+
+
+def test_a_second_server_on_the_same_master_refuses_and_leaves_the_first_running(server_factory, master_port, master):
     """rospy would shut the first server's node down for the second: the robot the first drives must not be stranded."""
-    master = start_master(master_port)
-    try:
-        first = server_factory(master_port)
-        wait_for(lambda: first.get("/health").json()["ros"] == "connected", timeout=30)
-        second = server_factory(master_port)
-        assert second.proc.wait(20) == 1, "the second server did not refuse"
-        assert second.find(r"another node runs as /flask_move_server .*\(pid \d+\).*systemctl stop flask-move-server")
-        time.sleep(1.5)  # two master checks: the first would have been shut down by now
-        assert first.proc.poll() is None and first.get("/health").json()["ros"] == "connected"
-    finally:
-        stop_process(master)
+    first = connected(server_factory(master_port))
+    second = server_factory(master_port)
+    assert second.proc.wait(20) == 1, "the second server did not refuse"
+    assert second.find(r"another node runs as /flask_move_server .*\(pid \d+\).*systemctl stop flask-move-server")
+    time.sleep(1.5)  # two master checks: the first would have been shut down by now
+    assert first.proc.poll() is None and first.get("/health").json()["ros"] == "connected"
 
 
-def test_a_node_that_takes_the_name_later_stops_the_server_saying_why(server_factory, master_port, tmp_path):
+def test_a_node_that_takes_the_name_later_stops_the_server_saying_why(server_factory, master_port, master, tmp_path):
     """Any other node registering our name makes rospy shut ours down: the server must not claim 'connected'."""
-    master = start_master(master_port)
-    usurper = None
+    server = connected(server_factory(master_port))
+    env = dict(os.environ, ROS_MASTER_URI=server.master_uri, ROS_HOME=str(tmp_path), ROS_IP="127.0.0.1")
+    usurper = subprocess.Popen([sys.executable, "-c", "import rospy; rospy.init_node('flask_move_server'); "
+                                "rospy.spin()"], env=env, preexec_fn=default_sigint)
     try:
-        server = server_factory(master_port)
-        wait_for(lambda: server.get("/health").json()["ros"] == "connected", timeout=30)
-        env = dict(os.environ, ROS_MASTER_URI=server.master_uri, ROS_HOME=str(tmp_path), ROS_IP="127.0.0.1")
-        usurper = subprocess.Popen([sys.executable, "-c", "import rospy; rospy.init_node('flask_move_server'); "
-                                    "rospy.spin()"], env=env, preexec_fn=default_sigint)
         assert server.proc.wait(20) == 3, "the server kept serving without its ROS node"
         assert server.find("another node registered as /flask_move_server")
     finally:
-        if usurper is not None:
-            stop_process(usurper)
-        stop_process(master)
+        stop_process(usurper)
 
 
-def test_a_dead_servers_leftover_registration_does_not_block_the_next(server_factory, master_port):
+def test_a_dead_servers_leftover_registration_does_not_block_the_next(server_factory, master_port, master):
     """A server killed with SIGKILL stays registered with the master; the next one (systemd's restart) takes over."""
-    master = start_master(master_port)
-    try:
-        first = server_factory(master_port)
-        wait_for(lambda: first.get("/health").json()["ros"] == "connected", timeout=30)
-        first.proc.kill()
-        first.proc.wait(10)
-        second = server_factory(master_port)
-        wait_for(lambda: second.get("/health").json()["ros"] == "connected", timeout=30)
-        assert second.proc.poll() is None
-    finally:
-        stop_process(master)
+    first = connected(server_factory(master_port))
+    first.proc.kill()
+    first.proc.wait(10)
+    second = connected(server_factory(master_port))
+    assert second.proc.poll() is None
