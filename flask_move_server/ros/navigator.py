@@ -67,7 +67,7 @@ class Navigator:
         self._goal = None
         self._feedback_pose = None
         self._message = None
-        self._ends = OrderedDict()  # seq -> (state, sentence) of the goals a newer one replaced
+        self._ends = OrderedDict()  # seq -> (state, message, target) of the goals a newer one replaced
         self._cancel_sent = None
         self._client = None
         self._readiness = None
