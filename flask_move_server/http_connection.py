@@ -20,6 +20,7 @@ from flask_move_server.web.events import PEER_GONE
 
 STREAM_TYPE = "text/event-stream"
 STREAM_BACKLOG = 64 * 1024  # bytes of a stream's output that may wait unsent before its writer waits
+UNREAD_LIMIT = 256 * 1024  # bytes of a closing connection's unread input read away, so it closes with a FIN
 
 _ERRORS = {
     400: ("bad_request", "The request is not valid HTTP ({detail})."),
@@ -120,6 +121,28 @@ class RobotChannel(HTTPChannel):
                     raise ClientDisconnected("the client took nothing for {:.0f} s".format(self.adj.channel_timeout))
                 self.server.pull_trigger()
                 self.outbuf_lock.wait(1.0)
+
+    def handle_close(self):
+        self._read_away_unread()
+        super().handle_close()
+
+    def _read_away_unread(self):
+        """Read (and drop) what the client sent that nobody will read, just before the socket closes.
+
+        Closing a TCP socket with unread data makes Linux send a reset instead of a FIN, and the
+        reset can reach the client before it reads the answer: a body refused with 413 while its
+        last chunk was still arriving showed as "connection reset by peer", not the JSON error
+        (1 run in 4). Bounded and non-blocking: at most ``UNREAD_LIMIT`` bytes.
+        """
+        sock, left = self.socket, UNREAD_LIMIT
+        try:
+            while sock is not None and left > 0:
+                data = sock.recv(min(left, 65536), socket.MSG_DONTWAIT)
+                if not data:
+                    return
+                left -= len(data)
+        except OSError:  # nothing more waiting (EAGAIN), or the peer is gone already
+            pass
 
     def received(self, data):
         if data and self.request is None:
