@@ -87,6 +87,25 @@ def test_a_chunked_body_is_read_whole_and_one_past_the_limit_is_a_json_413(serve
     assert over.status_code == 413 and over.json()["error"] == "body_too_large"
 
 
+def test_a_refused_body_still_in_flight_gets_the_answer_not_a_reset(served, robot_config):
+    """The server answers 413 and closes while the client's body still waits unread in its socket;
+    closed so, Linux resets the connection and the client may never read the answer."""
+    port = int(served.rsplit(":", 1)[1])
+    for _ in range(5):
+        with socket.create_connection(("127.0.0.1", port), timeout=10) as client:
+            client.sendall("PUT /waypoints/porch HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Type: application/json"
+                           "\r\nContent-Length: {}\r\n\r\n".format(robot_config.server.max_body_bytes + 1)
+                           .encode() + b" " * 65536)  # far more than the server reads before it refuses
+            time.sleep(0.2)  # the answer is sent and the connection closed by now
+            answer = b""
+            while True:
+                chunk = client.recv(65536)  # ConnectionResetError when the close was a reset
+                if not chunk:
+                    break
+                answer += chunk
+        assert answer.startswith(b"HTTP/1.1 413") and b'"error": "body_too_large"' in answer
+
+
 def test_silent_and_slow_connections_are_closed_after_request_timeout(app, robot_config):
     robot_config.server.request_timeout = 1.0
     with hardened(app, robot_config.server) as (server, url):
