@@ -20,14 +20,12 @@ def failure_sentence(state, target=None):
     Any state without a sentence of its own (``lost``, ``preempted``, ...) reads as aborted:
     the robot did not arrive and nobody asked it to stop.
     """
-    to = " to {!r}".format(target) if target else ""
-    return _SENTENCES.get(state, _SENTENCES["aborted"]).format(to=to)
+    return _SENTENCES.get(state, _SENTENCES["aborted"]).format(to=_to(target))
 
 
 def replaced_sentence(target=None):
     """The sentence for a goal to ``target`` that a newer goal took the place of while under way."""
-    to = " to {!r}".format(target) if target else ""
-    return "The goal{} was replaced by a newer goal.".format(to)
+    return "The goal{} was replaced by a newer goal.".format(_to(target))
 
 
 def said_sentence(state, target, said):
@@ -36,9 +34,9 @@ def said_sentence(state, target, said):
     move_base's words replace the guess ("no path was found or the robot got stuck"): a goal
     ended because the navigation stack was stopped for a mode switch says so.
     """
-    to = " to {!r}".format(target) if target else ""
     verb = "rejected" if state == "rejected" else "aborted"
-    return "move_base {} the goal{}: {}{}".format(verb, to, said, "" if said.endswith((".", "!", "?")) else ".")
+    stop = "" if said.endswith((".", "!", "?")) else "."
+    return "move_base {} the goal{}: {}{}".format(verb, _to(target), said, stop)
 
 
 def replaced_end(state, message, target):
@@ -50,3 +48,8 @@ def replaced_end(state, message, target):
     if state == "succeeded":
         return state, None
     return state, message or failure_sentence(state, target)
+
+
+def _to(target):
+    """`` to 'kitchen'`` for a goal to a waypoint; nothing for a goal to x, y."""
+    return " to {!r}".format(target) if target else ""
