@@ -44,7 +44,7 @@ class Harness:
         self.poses = []
         kw = {"clock": clock} if clock else {}
         self.modes = ModeManager(cfg, self.stack, self.bus, relocalize=self.poses.append, **kw)
-        self.modes.restarts.BACKOFF = (0.01, 0.02, 0.04)
+        self.modes.restart_budget.BACKOFF = (0.01, 0.02, 0.04)
 
     def states(self):
         return [(e["mode"], e["state"]) for e in self.events]

@@ -57,7 +57,7 @@ class ModeManager:
         self._closing = threading.Event()
         self._closed = False
         self._up = False  # the backend may have a stack running (stop it before the next start)
-        self.restarts = RestartBudget(config.modes, clock)
+        self.restart_budget = RestartBudget(config.modes, clock)
         # Until restore(): idle with nothing started; without a backend, the outside stack's navigation.
         self._target = Target("idle") if backend else Target("navigation")
         self._status = self._body(self._target, "running", IDLE if backend else OUTSIDE)
@@ -131,7 +131,7 @@ class ModeManager:
                 with self._changed:
                     self._set(target, "stopping", "stopping before " + target.describe())
             self._stop_stack()  # idempotent: also whatever a backend runs before the first switch
-            self.restarts.renew()
+            self.restart_budget.renew()
             failure = self._start(gen, target, "starting " + target.describe(), relocalize=True)
             if failure is not None:
                 with self._changed:
@@ -158,7 +158,7 @@ class ModeManager:
         if relocalize:
             note = relocalizing.after_start(target, self.targets.waypoints_path, self._publish_pose)
         else:
-            note = relocalizing.restarted_note(target, self.restarts.used)
+            note = relocalizing.restarted_note(target, self.restart_budget.used)
         self._running(gen, target, note + late)
         return None
 
@@ -184,7 +184,7 @@ class ModeManager:
         except OSError as exc:
             log.warning("cannot remember the mode in %s: %s", self._config.mode_state_file(), exc)
         with self._changed:
-            self.restarts.running()
+            self.restart_budget.running()
             self._set(target, "running", message)
             self._release(gen)  # in the same breath: a crash from now on is this run's
 
@@ -224,7 +224,7 @@ class ModeManager:
             if gen != self._gen or self._busy or self._closed or self._status["state"] != "running":
                 return  # a stack we are stopping, or an old one
             log.warning("the %s stack stopped by itself: %s", self._target.mode, message)
-            self.restarts.crashed()
+            self.restart_budget.crashed()
             gave_up = not self._count_restart(message)
             self._busy = True
             self._gen += 1  # the restarted stack's exits carry the new number; the dead one's are ignored
@@ -243,7 +243,7 @@ class ModeManager:
 
     def _count_restart(self, message):
         """Under the lock: one more restart, or False when none is left (the mode is then failed)."""
-        failure = self.restarts.take(message)
+        failure = self.restart_budget.take(message)
         if failure is not None:
             self._set(self._target, "failed", failure)
         return failure is None
@@ -251,10 +251,10 @@ class ModeManager:
     def _restart(self, gen, target, message):
         try:
             while True:
-                note = self.restarts.note(message)
+                note = self.restart_budget.note(message)
                 with self._changed:
                     self._set(target, "starting", note)
-                if self._closing.wait(self.restarts.delay()):
+                if self._closing.wait(self.restart_budget.delay()):
                     return
                 self._stop_stack()
                 message = self._start(gen, target, note, relocalize=False)
