@@ -6,7 +6,9 @@
 - an event stream's unsent output is bounded (``STREAM_BACKLOG``): its writer waits instead, and
   a peer that takes nothing for ``channel_timeout`` is disconnected; the app can ask whether the
   peer left (``flask_move_server.peer_gone`` in the WSGI environ);
-- waitress's own error answers (400, 413, 431, 501) come in the API's JSON error shape.
+- waitress's own error answers (400, 413, 431, 501) come in the API's JSON error shape, and the
+  connection of a request refused midway closes only once the client is done sending, so the
+  client reads the answer instead of a reset (:meth:`RobotChannel._linger`).
 """
 
 import json
@@ -20,7 +22,8 @@ from flask_move_server.web.events import PEER_GONE
 
 STREAM_TYPE = "text/event-stream"
 STREAM_BACKLOG = 64 * 1024  # bytes of a stream's output that may wait unsent before its writer waits
-UNREAD_LIMIT = 256 * 1024  # bytes of a closing connection's unread input read away, so it closes with a FIN
+UNREAD_LIMIT = 1024 * 1024  # bytes a refused request may still send before its connection is closed
+LINGER_SECONDS = 2.0  # how long a refused request's connection waits for the client to finish sending
 
 _ERRORS = {
     400: ("bad_request", "The request is not valid HTTP ({detail})."),
@@ -45,6 +48,7 @@ class JsonErrorTask(ErrorTask):
         self.response_headers.append(("Content-Type", "application/json"))
         self.response_headers.append(("Connection", "close"))  # waitress closes after an error
         self.close_on_finish = True
+        self.channel.refused = True
         self.content_length = len(body)
         self.write(body)
 
@@ -80,6 +84,9 @@ class RobotChannel(HTTPChannel):
     task_class = RobotTask
     error_task_class = JsonErrorTask
     request_began = None
+    refused = False  # a JSON error answer was the last: the request may not have been read whole
+    linger_until = None  # while set, the answer is sent and the client's remaining input is dropped
+    linger_left = 0
 
     def peer_gone(self):
         """True once the client closed or reset the connection (peeked at, nothing read)."""
@@ -122,27 +129,58 @@ class RobotChannel(HTTPChannel):
                 self.server.pull_trigger()
                 self.outbuf_lock.wait(1.0)
 
-    def handle_close(self):
-        self._read_away_unread()
-        super().handle_close()
+    def readable(self):
+        return self.linger_until is not None or super().readable()
 
-    def _read_away_unread(self):
-        """Read (and drop) what the client sent that nobody will read, just before the socket closes.
+    def writable(self):
+        if self.linger_until is not None:
+            return time.time() > self.linger_until  # then handle_write closes it
+        return super().writable()
 
-        Closing a TCP socket with unread data makes Linux send a reset instead of a FIN, and the
-        reset can reach the client before it reads the answer: a body refused with 413 while its
-        last chunk was still arriving showed as "connection reset by peer", not the JSON error
-        (1 run in 4). Bounded and non-blocking: at most ``UNREAD_LIMIT`` bytes.
-        """
-        sock, left = self.socket, UNREAD_LIMIT
+    def handle_read(self):
+        if self.linger_until is None:
+            return super().handle_read()
         try:
-            while sock is not None and left > 0:
-                data = sock.recv(min(left, 65536), socket.MSG_DONTWAIT)
-                if not data:
-                    return
-                left -= len(data)
-        except OSError:  # nothing more waiting (EAGAIN), or the peer is gone already
-            pass
+            data = self.socket.recv(65536)
+        except (BlockingIOError, InterruptedError):
+            return
+        except (OSError, AttributeError):  # the client reset the connection, or it is closed
+            data = b""
+        self.linger_left -= len(data)
+        if not data or self.linger_left <= 0:
+            self._close_now()
+
+    def handle_write(self):
+        if self.linger_until is not None:
+            return self._close_now()  # LINGER_SECONDS are over
+        return super().handle_write()
+
+    def handle_close(self):
+        if self.linger_until is None and self.refused and self.connected and not self.total_outbufs_len:
+            self._linger()
+        else:
+            self._close_now()
+
+    def _linger(self):
+        """After a refusal, send the FIN and read away what the client still sends, then close.
+
+        A request refused midway (413 while its body is still coming, 400 on bad framing) leaves
+        input unread; closing a TCP socket then makes Linux answer the client's next bytes with a
+        reset, and a client still sending (requests sends a chunked body whole before it reads)
+        sees "connection reset" instead of the JSON error. So the server shuts its side down and
+        drops what arrives until the client closes, ``UNREAD_LIMIT`` bytes or ``LINGER_SECONDS``,
+        whichever comes first (the lingering close of RFC 9112 section 9.6 and of nginx).
+        """
+        try:
+            self.socket.shutdown(socket.SHUT_WR)
+        except (OSError, AttributeError):
+            return self._close_now()
+        self.linger_left = UNREAD_LIMIT
+        self.linger_until = time.time() + LINGER_SECONDS
+
+    def _close_now(self):
+        self.linger_until = None
+        super().handle_close()
 
     def received(self, data):
         if data and self.request is None:

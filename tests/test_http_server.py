@@ -15,6 +15,7 @@ from concurrent.futures import ThreadPoolExecutor
 import pytest
 import requests
 
+from flask_move_server.http_connection import LINGER_SECONDS, UNREAD_LIMIT
 from tests.conftest import hardened, wait_for
 from tests.standins.move_base import HOLD_X
 
@@ -104,6 +105,60 @@ def test_a_refused_body_still_in_flight_gets_the_answer_not_a_reset(served, robo
                     break
                 answer += chunk
         assert answer.startswith(b"HTTP/1.1 413") and b'"error": "body_too_large"' in answer
+
+
+def _refused_chunked_upload(port, limit):
+    """A connection that has sent a chunked PUT one chunk past ``limit``, the body not yet ended."""
+    client = socket.create_connection(("127.0.0.1", port), timeout=10)
+    client.sendall(b"PUT /waypoints/porch HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Type: application/json"
+                   b"\r\nTransfer-Encoding: chunked\r\n\r\n")
+    for _ in range(limit // 1000 + 1):
+        client.sendall(b"3e8\r\n" + b" " * 1000 + b"\r\n")
+    time.sleep(0.3)  # the server has answered 413 by now
+    return client
+
+
+def _read_to_end(client):
+    answer = b""
+    while True:
+        chunk = client.recv(65536)  # ConnectionResetError when the server reset the connection
+        if not chunk:
+            return answer
+        answer += chunk
+
+
+def test_a_client_still_sending_a_refused_body_reads_the_answer_not_a_reset(served, robot_config):
+    """requests sends a chunked body whole before it reads: its chunks after the 413 must not be reset."""
+    port = int(served.rsplit(":", 1)[1])
+    for _ in range(3):
+        with _refused_chunked_upload(port, robot_config.server.max_body_bytes) as client:
+            client.sendall(b"3e8\r\n" + b" " * 1000 + b"\r\n")
+            time.sleep(0.1)
+            client.sendall(b"0\r\n\r\n")  # BrokenPipeError when the server closed without lingering
+            answer = _read_to_end(client)
+        assert answer.startswith(b"HTTP/1.1 413") and b'"error": "body_too_large"' in answer
+
+
+def test_a_refused_client_cannot_hold_its_connection_by_sending_or_by_silence(served, robot_config):
+    port = int(served.rsplit(":", 1)[1])
+    limit = robot_config.server.max_body_bytes
+    with _refused_chunked_upload(port, limit) as silent:
+        started = time.monotonic()
+        assert _read_to_end(silent).startswith(b"HTTP/1.1 413")  # the answer, then the server's FIN
+        silent.sendall(b"3e8\r\n")  # the connection stays open for the rest of the body ...
+        time.sleep(LINGER_SECONDS + 2)  # ... for LINGER_SECONDS, plus the server loop's sleep
+        with pytest.raises(OSError):  # then it is closed: the late bytes are answered with a reset
+            for _ in range(10):
+                silent.sendall(b" " * 1000)
+                time.sleep(0.05)
+        assert time.monotonic() - started < 15
+    with _refused_chunked_upload(port, limit) as endless:
+        sent = 0
+        with pytest.raises(OSError):
+            while sent < 20 * UNREAD_LIMIT:
+                endless.sendall(b"3e8\r\n" + b" " * 1000 + b"\r\n")
+                sent += 1006
+        assert sent < 20 * UNREAD_LIMIT, "the server kept reading a refused body without end"
 
 
 def test_silent_and_slow_connections_are_closed_after_request_timeout(app, robot_config):
