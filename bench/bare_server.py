@@ -50,7 +50,7 @@ def main():
     else:
         import waitress
 
-        server = waitress.create_server(app, host="127.0.0.1", port=0, threads=6)
+        server = waitress.create_server(app, host="127.0.0.1", port=0, threads=6, clear_untrusted_proxy_headers=True)
         print("bare server on http://127.0.0.1:{}".format(server.effective_port), file=sys.stderr, flush=True)
         server.run()
 

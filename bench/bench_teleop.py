@@ -185,7 +185,7 @@ def bare_flask(n):
 def serving(app):
     import waitress
 
-    server = waitress.create_server(app, host="127.0.0.1", port=0, threads=6)
+    server = waitress.create_server(app, host="127.0.0.1", port=0, threads=6, clear_untrusted_proxy_headers=True)
     thread = threading.Thread(target=server.run, daemon=True)
     thread.start()
     try:

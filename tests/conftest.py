@@ -143,7 +143,7 @@ def serve(app, host="127.0.0.1"):
     """Serve a WSGI app with a real waitress server on a free port; yields its base URL."""
     import waitress
 
-    server = waitress.create_server(app, host=host, port=0, threads=4)
+    server = waitress.create_server(app, host=host, port=0, threads=4, clear_untrusted_proxy_headers=True)
     thread = threading.Thread(target=server.run, name="test-waitress", daemon=True)
     thread.start()
     try:
