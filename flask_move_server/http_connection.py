@@ -178,6 +178,15 @@ class RobotChannel(HTTPChannel):
         self.linger_left = UNREAD_LIMIT
         self.linger_until = time.time() + LINGER_SECONDS
 
+    def lingering(self):
+        """True while the answer is sent and the client's remaining input is being dropped."""
+        return self.linger_until is not None
+
+    def stop_lingering(self):
+        """Close at the loop's next pass (to make room for other clients)."""
+        if self.linger_until is not None:
+            self.linger_until = 0.0
+
     def _close_now(self):
         self.linger_until = None
         super().handle_close()

@@ -51,17 +51,23 @@ class RobotWSGIServer(TcpWSGIServer):
     def make_room(self):
         """Over ``connection_limit``: close the connections that have waited longest for nothing.
 
-        Closed as waitress closes: ``will_close``, acted on by the loop's next pass (closing a
-        socket while the loop gathers its select() lists would hand select() a closed descriptor).
+        Those lingering after a refusal go first (their answer is sent), so a burst of refused
+        requests cannot fill the server. Closed as waitress closes, by the loop's next pass
+        (closing a socket while the loop gathers its select() lists would hand select() a
+        closed descriptor): ``will_close``, or a lingering channel's ``stop_lingering()``.
         """
         channels = list(self.active_channels.values())
-        excess = len(channels) - sum(1 for c in channels if c.will_close) - self.adj.connection_limit
+        closing = sum(1 for c in channels if c.will_close and not c.lingering())
+        excess = len(channels) - closing - self.adj.connection_limit
         if excess <= 0:
             return
+        lingering = [c for c in channels if c.lingering()][:excess]
+        for channel in lingering:
+            channel.stop_lingering()
         waiting = sorted((c.waiting_since(), id(c), c) for c in channels if c.waiting_since() is not None)
-        for _, _, channel in waiting[:excess]:
+        for _, _, channel in waiting[:excess - len(lingering)]:
             channel.will_close = True
-        self.policy.shed += min(excess, len(waiting))
+        self.policy.shed += min(excess, len(lingering) + len(waiting))
 
     def maintenance(self, now):
         """Close connections past request_timeout (no whole request yet) or channel_timeout (idle)."""

@@ -161,6 +161,26 @@ def test_a_refused_client_cannot_hold_its_connection_by_sending_or_by_silence(se
         assert sent < 20 * UNREAD_LIMIT, "the server kept reading a refused body without end"
 
 
+def test_a_burst_of_refused_requests_lingering_does_not_lock_other_clients_out(app, robot_config):
+    robot_config.server.connection_limit = 4  # the server stops accepting at twice the limit
+    limit = robot_config.server.max_body_bytes
+    with hardened(app, robot_config.server) as (server, url):
+        port = int(url.rsplit(":", 1)[1])
+        refused = []
+        try:
+            for _ in range(8):
+                client = socket.create_connection(("127.0.0.1", port), timeout=10)
+                refused.append(client)
+                client.sendall(b"PUT /waypoints/porch HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Length: "
+                               + str(limit + 1).encode() + b"\r\n\r\n" + b" " * (limit + 1))
+                assert _read_to_end(client).startswith(b"HTTP/1.1 413")  # answered; it lingers, open
+            answer = requests.get(url + "/health", timeout=LINGER_SECONDS / 2)  # before any lingering ends
+            assert answer.status_code == 200
+        finally:
+            for client in refused:
+                client.close()
+
+
 def test_silent_and_slow_connections_are_closed_after_request_timeout(app, robot_config):
     robot_config.server.request_timeout = 1.0
     with hardened(app, robot_config.server) as (server, url):
