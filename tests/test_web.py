@@ -135,6 +135,15 @@ def test_an_unknown_path_answers_with_the_paths_the_api_has(client):
     assert len(long) < 400 and "/" + "x" * 79 + "…. " in long  # a long path is not echoed whole
 
 
+def test_a_trailing_slash_is_pointed_out_and_changes_nothing(client, robot):
+    answer = client.post("/goto/", json={"name": "kitchen"})
+    assert answer.status_code == 404
+    assert answer.get_json()["message"] == "No such endpoint: /goto/. Did you mean /goto (no slash at the end)?"
+    assert robot.moved() == []
+    assert "Did you mean /status " in client.get("/status//").get_json()["message"]
+    assert "Did you mean" not in client.get("/goto/").get_json()["message"]  # /goto takes POST, not GET
+
+
 def test_a_body_that_is_not_json_shows_what_to_send(client):
     message = client.post("/goto", data="name=kitchen").get_json()["message"]
     assert message.startswith("The body is not valid JSON (") and message.endswith('e.g. {"name": "kitchen"}.')

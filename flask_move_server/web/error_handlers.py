@@ -106,8 +106,22 @@ def init_app(app):
             tops = {"/" + rule.rule.split("/")[1] for rule in app.url_map.iter_rules()}
             paths.extend(sorted(tops - {"/", "/static"}))
         shown = request.path if len(request.path) <= PATH_SHOWN else request.path[:PATH_SHOWN] + "…"
+        meant = _without_trailing_slash()
+        if meant:
+            return "No such endpoint: {}. Did you mean {} (no slash at the end)?".format(shown, meant)
         return "No such endpoint: {}. The API has {} (GET /openapi.json describes each).".format(
             shown, ", ".join(paths))
+
+    def _without_trailing_slash():
+        """The request's path without its trailing slashes, when that is a route for its method."""
+        path = request.path.rstrip("/")
+        if not path or path == request.path:
+            return None
+        try:
+            app.url_map.bind("robot").match(path, method=request.method)
+        except HTTPException:  # no such route either, or another method (a redirect is one too)
+            return None
+        return path if len(path) <= PATH_SHOWN else None
 
     @app.errorhandler(Exception)
     def _unexpected(exc):
