@@ -210,9 +210,14 @@ def test_the_pose_given_or_named_with_the_switch_is_set(cfg, harness):
         harness.modes.switch("navigation", "flat", "hal")
 
 
-def test_set_pose_needs_a_map(harness):
-    with pytest.raises(WrongMode):
+def test_set_pose_needs_navigation_on_a_map(harness):
+    with pytest.raises(WrongMode, match="idle"):
         harness.modes.set_pose(Pose2D(1.0, 2.0, 0.0))
+    harness.modes.switch("mapping")
+    harness.modes.wait(5)
+    with pytest.raises(WrongMode, match="While mapping.*SLAM takes no pose"):  # gmapping ignores /initialpose
+        harness.modes.set_pose(Pose2D(1.0, 2.0, 0.0))
+    assert harness.poses == []
     harness.modes.switch("navigation")
     harness.modes.wait(5)
     harness.modes.set_pose(Pose2D(1.0, 2.0, 0.0))

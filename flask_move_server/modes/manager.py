@@ -281,7 +281,7 @@ class ModeManager:
             log.exception("cannot restore the mode %s", target.describe())
 
     def set_pose(self, pose):
-        """Tell localization the robot is at ``pose`` (in the map frame); WrongMode when no map is in use.
+        """Tell localization the robot is at ``pose`` (in the map frame); WrongMode unless navigating.
 
         ModeSwitching while a switch (or a restart) is under way: the localization being started
         would miss the pose or overwrite it with the map's dock, while the answer said ok.
@@ -292,9 +292,13 @@ class ModeManager:
             raise ModeSwitching("A switch to {} is under way, so a pose now would be lost; wait until GET /mode "
                                 "says running, or give the pose with the switch (POST /mode with \"pose\")."
                                 .format(target.describe()))
-        if self.status()["mode"] == "idle":
+        mode = self.status()["mode"]
+        if mode == "idle":
             raise WrongMode("No map is in use (the mode is idle): start navigation on a map first "
                             "(POST /mode {\"mode\": \"navigation\", \"map\": NAME}).")
+        if mode == "mapping":
+            raise WrongMode("While mapping, the map is built around where the robot started, and SLAM takes "
+                            "no pose; save the map, then set the pose when navigating on it.")
         self._publish_pose(pose)
 
     def _publish_pose(self, pose):
