@@ -129,6 +129,15 @@ class RobotChannel(HTTPChannel):
                 self.server.pull_trigger()
                 self.outbuf_lock.wait(1.0)
 
+    def handle_expt(self):
+        """TCP urgent data, which no HTTP client sends: close the connection.
+
+        Waitress only logs it ("unhandled incoming priority event") and leaves the byte unread, so
+        one urgent byte kept the loop spinning at 100 % and logging ~60,000 lines a second until
+        the connection timed out.
+        """
+        self._close_now()
+
     def readable(self):
         return self.linger_until is not None or super().readable()
 

@@ -53,7 +53,7 @@ class RobotWSGIServer(TcpWSGIServer):
 
         Those lingering after a refusal go first (their answer is sent), so a burst of refused
         requests cannot fill the server. Closed as waitress closes, by the loop's next pass
-        (closing a socket while the loop gathers its select() lists would hand select() a
+        (closing a socket while the loop gathers its poll() lists would hand poll() a
         closed descriptor): ``will_close``, or a lingering channel's ``stop_lingering()``.
         """
         channels = list(self.active_channels.values())
@@ -155,6 +155,9 @@ def waitress_settings(server_config):
         max_request_body_size=server_config.max_body_bytes + 1,
         ident="flask-move-server",
         clear_untrusted_proxy_headers=True,
+        # poll(), not select(): select() cannot watch a descriptor numbered 1024 or more, and one
+        # such connection (a large connection_limit, or ROS's own sockets and files) killed the loop
+        asyncore_use_poll=True,
     )
 
 

@@ -8,6 +8,8 @@ become one summary.
 import contextlib
 import json
 import logging
+import os
+import resource
 import socket
 import time
 from concurrent.futures import ThreadPoolExecutor
@@ -179,6 +181,47 @@ def test_a_burst_of_refused_requests_lingering_does_not_lock_other_clients_out(a
         finally:
             for client in refused:
                 client.close()
+
+
+def _length(answer):
+    head = answer.partition(b"\r\n\r\n")[0].decode("latin-1").lower()
+    return int(head.split("content-length: ")[1].split("\r\n")[0])
+
+
+def test_one_urgent_byte_closes_its_connection_instead_of_spinning_the_server(served, caplog):
+    port = int(served.rsplit(":", 1)[1])
+    with socket.create_connection(("127.0.0.1", port), timeout=5) as client:
+        client.sendall(b"GET /health HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n")
+        answer = b""
+        while b"\r\n\r\n" not in answer or len(answer.partition(b"\r\n\r\n")[2]) < _length(answer):
+            answer += client.recv(65536)
+        assert answer.startswith(b"HTTP/1.1 200")  # served whole; the connection is kept alive
+        client.send(b"!", socket.MSG_OOB)
+        try:
+            closed = client.recv(65536) == b""  # socket.timeout when it was left open (and spinning)
+        except ConnectionResetError:  # the urgent byte was unread: the close is a reset
+            closed = True
+        assert closed
+    assert requests.get(served + "/health", timeout=5).status_code == 200
+    assert not [r for r in caplog.records if "priority event" in r.getMessage()]
+
+
+def test_a_connection_numbered_past_1024_is_served(served):
+    """select() cannot watch descriptor 1024 or more; the server's loop died on one such connection."""
+    port = int(served.rsplit(":", 1)[1])
+    soft, hard = resource.getrlimit(resource.RLIMIT_NOFILE)
+    if soft != resource.RLIM_INFINITY and soft < 1200:
+        resource.setrlimit(resource.RLIMIT_NOFILE, (1200 if hard == resource.RLIM_INFINITY else min(1200, hard), hard))
+    spare = []
+    try:
+        while not spare or spare[-1] < 1030:  # the server (in this process) takes the next numbers
+            spare.append(os.open(os.devnull, os.O_RDONLY))
+        answer = requests.get(served + "/health", timeout=5)
+        assert answer.status_code == 200
+    finally:
+        for fd in spare:
+            os.close(fd)
+    assert requests.get(served + "/health", timeout=5).status_code == 200  # and the loop lives on
 
 
 def test_silent_and_slow_connections_are_closed_after_request_timeout(app, robot_config):
