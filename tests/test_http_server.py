@@ -208,7 +208,6 @@ def test_one_urgent_byte_closes_its_connection_instead_of_spinning_the_server(se
 
 def test_a_connection_numbered_past_1024_is_served(served):
     """select() cannot watch descriptor 1024 or more; the server's loop died on one such connection."""
-    port = int(served.rsplit(":", 1)[1])
     soft, hard = resource.getrlimit(resource.RLIMIT_NOFILE)
     if soft != resource.RLIM_INFINITY and soft < 1200:
         resource.setrlimit(resource.RLIMIT_NOFILE, (1200 if hard == resource.RLIM_INFINITY else min(1200, hard), hard))
