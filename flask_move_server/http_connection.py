@@ -139,15 +139,15 @@ class RobotChannel(HTTPChannel):
         self._close_now()
 
     def readable(self):
-        return self.linger_until is not None or super().readable()
+        return self.lingering() or super().readable()
 
     def writable(self):
-        if self.linger_until is not None:
+        if self.lingering():
             return time.time() > self.linger_until  # then handle_write closes it
         return super().writable()
 
     def handle_read(self):
-        if self.linger_until is None:
+        if not self.lingering():
             return super().handle_read()
         try:
             data = self.socket.recv(65536)
@@ -160,12 +160,12 @@ class RobotChannel(HTTPChannel):
             self._close_now()
 
     def handle_write(self):
-        if self.linger_until is not None:
+        if self.lingering():
             return self._close_now()  # LINGER_SECONDS are over
         return super().handle_write()
 
     def handle_close(self):
-        if self.linger_until is None and self.refused and self.connected and not self.total_outbufs_len:
+        if not self.lingering() and self.refused and self.connected and not self.total_outbufs_len:
             self._linger()
         else:
             self._close_now()
@@ -193,7 +193,7 @@ class RobotChannel(HTTPChannel):
 
     def stop_lingering(self):
         """Close at the loop's next pass (to make room for other clients)."""
-        if self.linger_until is not None:
+        if self.lingering():
             self.linger_until = 0.0
 
     def _close_now(self):

@@ -90,6 +90,15 @@ def test_a_chunked_body_is_read_whole_and_one_past_the_limit_is_a_json_413(serve
     assert over.status_code == 413 and over.json()["error"] == "body_too_large"
 
 
+def _read_to_end(client):
+    answer = b""
+    while True:
+        chunk = client.recv(65536)  # ConnectionResetError when the server reset the connection
+        if not chunk:
+            return answer
+        answer += chunk
+
+
 def test_a_refused_body_still_in_flight_gets_the_answer_not_a_reset(served, robot_config):
     """The server answers 413 and closes while the client's body still waits unread in its socket;
     closed so, Linux resets the connection and the client may never read the answer."""
@@ -100,12 +109,7 @@ def test_a_refused_body_still_in_flight_gets_the_answer_not_a_reset(served, robo
                            "\r\nContent-Length: {}\r\n\r\n".format(robot_config.server.max_body_bytes + 1)
                            .encode() + b" " * 65536)  # far more than the server reads before it refuses
             time.sleep(0.2)  # the answer is sent and the connection closed by now
-            answer = b""
-            while True:
-                chunk = client.recv(65536)  # ConnectionResetError when the close was a reset
-                if not chunk:
-                    break
-                answer += chunk
+            answer = _read_to_end(client)
         assert answer.startswith(b"HTTP/1.1 413") and b'"error": "body_too_large"' in answer
 
 
@@ -118,15 +122,6 @@ def _refused_chunked_upload(port, limit):
         client.sendall(b"3e8\r\n" + b" " * 1000 + b"\r\n")
     time.sleep(0.3)  # the server has answered 413 by now
     return client
-
-
-def _read_to_end(client):
-    answer = b""
-    while True:
-        chunk = client.recv(65536)  # ConnectionResetError when the server reset the connection
-        if not chunk:
-            return answer
-        answer += chunk
 
 
 def test_a_client_still_sending_a_refused_body_reads_the_answer_not_a_reset(served, robot_config):
