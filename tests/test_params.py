@@ -51,9 +51,10 @@ def nest(flat, node):
 
 def check_names(tree, table, where):
     """Problems with the keys of ``tree`` for a node or plugin described by ``table``."""
-    problems = []
+    problems = check_conditions(tree, table, where)
     known = set(table.get("parameters", []))
-    namespaces = table.get("namespaces", {})
+    namespaces = dict(table.get("namespaces", {}))
+    namespaces.update(recovery_namespaces(tree, table, where, problems))
     for key, value in tree.items():
         name = "{}/{}".format(where, key)
         if key in namespaces:
@@ -62,6 +63,30 @@ def check_names(tree, table, where):
             problems.append("{}: outdated name, {} reads {!r}".format(name, table["package"], table["deprecated"][key]))
         elif key not in known:
             problems.append("{}: not a parameter of {} ({})".format(name, table["package"], table["source"]))
+    return problems
+
+
+def recovery_namespaces(tree, table, where, problems):
+    """move_base: each recovery_behaviors entry's ``~<name>/`` namespace, read by its type's table."""
+    types = table.get("recoveries", {})
+    namespaces = {}
+    for entry in tree.get("recovery_behaviors", []) if types else []:
+        if entry.get("type") in types:
+            namespaces[entry["name"]] = types[entry["type"]]
+        else:
+            problems.append("{}/recovery_behaviors: unknown recovery type {!r}".format(where, entry.get("type")))
+    return namespaces
+
+
+def check_conditions(tree, table, where):
+    """Keys a node reads only under some setting of another key (amcl's laser models)."""
+    problems = []
+    for setting, rule in table.get("only_with", {}).items():
+        value = tree.get(setting, rule["default"])
+        for key, settings in rule["keys"].items():
+            if key in tree and value not in settings:
+                problems.append("{}/{}: does nothing with {} {} (read only with {})".format(
+                    where, key, setting, value, " or ".join(settings)))
     return problems
 
 
