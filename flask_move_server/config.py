@@ -187,6 +187,16 @@ class MdnsConfig:
 class SimConfig:
     """The simulated robot and world used by ``--sim``."""
 
+    # The move_base stand-in drives with the robot's own move_base.yaml and dwa_local_planner.yaml.
+    MOVED = {name: "the simulated move_base takes {} from {} in sim.navigation_config, the robot's own "
+                   "navigation files (default: the shipped config/)".format(param, where)
+             for name, param, where in (
+                 ("max_linear", "max_vel_x", "dwa_local_planner.yaml"),
+                 ("max_angular", "max_vel_theta", "dwa_local_planner.yaml"),
+                 ("xy_goal_tolerance", "xy_goal_tolerance", "dwa_local_planner.yaml"),
+                 ("yaw_goal_tolerance", "yaw_goal_tolerance", "dwa_local_planner.yaml"),
+                 ("control_rate", "controller_frequency", "move_base.yaml"))}
+
     enabled: bool = False
     map: Optional[str] = path_field(default=None)
     speed_factor: float = checked(rules.speed_factor, default=1.0)
@@ -194,11 +204,7 @@ class SimConfig:
     safety_margin: float = checked(rules.non_negative, default=0.1)
     rate: float = checked(rules.positive, default=50.0)
     scan_rate: float = checked(rules.non_negative, default=5.5)
-    control_rate: float = checked(rules.positive, default=20.0)
-    max_linear: float = checked(rules.positive, default=0.3)
-    max_angular: float = checked(rules.positive, default=1.2)
-    xy_goal_tolerance: float = checked(rules.positive, default=0.1)
-    yaw_goal_tolerance: float = checked(rules.positive, default=0.2)
+    navigation_config: Optional[str] = path_field(default=None)  # None: the shipped config/ folder
     stuck_timeout: float = checked(rules.positive, default=10.0)
     map_topic: str = "map"
     scan_topic: str = "scan"

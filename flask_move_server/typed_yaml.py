@@ -39,7 +39,7 @@ def build(cls, data, source="(config)", base_dir=".", prefix=""):
     if not isinstance(data, dict):
         raise ConfigError(source, prefix.rstrip(".") or None, "must be a mapping, got {}".format(_kind(data)))
     fields = {f.name: f for f in dataclasses.fields(cls) if not f.metadata.get("internal")}
-    _refuse_unknown(data, fields, source, prefix)
+    _refuse_unknown(data, fields, source, prefix, getattr(cls, "MOVED", {}))
     hints = typing.get_type_hints(cls)
     values = {}
     for name, value in data.items():
@@ -55,10 +55,13 @@ def build(cls, data, source="(config)", base_dir=".", prefix=""):
     return cls(**values)
 
 
-def _refuse_unknown(data, fields, source, prefix):
+def _refuse_unknown(data, fields, source, prefix, moved):
+    """An unknown key is an error: a key that moved elsewhere says where, another a close name."""
     unknown = [k for k in data if k not in fields]
     if unknown:
         key = str(unknown[0])
+        if key in moved:
+            raise ConfigError(source, prefix + key, "no longer here: " + moved[key])
         close = difflib.get_close_matches(key, list(fields), n=1)
         hint = "; did you mean {!r}?".format(close[0]) if close else "; known keys: {}".format(", ".join(fields))
         raise ConfigError(source, prefix + key, "unknown key" + hint)

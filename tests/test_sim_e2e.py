@@ -29,13 +29,13 @@ DEMO_WAYPOINTS = os.path.join(ROOT, "config", "waypoints.demo.yaml")
 class SimServer(SimReads, ServerProcess):
     """``flask-move-server --sim`` in a child process, ready to drive."""
 
-    def __init__(self, tmp_path):
+    def __init__(self, tmp_path, sim_config=""):
         self.master_port = free_port()
         self.master_uri = "http://127.0.0.1:{}".format(self.master_port)
         self.waypoints = tmp_path / "waypoints.yaml"
         shutil.copy(DEMO_WAYPOINTS, str(self.waypoints))
         config = tmp_path / "sim.yaml"
-        config.write_text("sim:\n  speed_factor: {}\n".format(SPEED_FACTOR))
+        config.write_text("sim:\n  speed_factor: {}\n{}".format(SPEED_FACTOR, sim_config))
         env = {"ROS_MASTER_URI": self.master_uri, "ROS_HOME": str(tmp_path), "ROS_LOG_DIR": str(tmp_path / "log"),
                "ROS_IP": "127.0.0.1"}
         super().__init__("--sim", "--config", str(config), "--host", "127.0.0.1", "--port", "0", "--no-mdns",

@@ -31,6 +31,13 @@ class FollowerLimits:
     gain_linear: float = 1.0        # (m/s) per m to the goal
     gain_angular: float = 2.0       # (rad/s) per rad of heading error
 
+    @classmethod
+    def from_planner(cls, planner):
+        """The robot's own DWA limits (a ``dwa.PlannerLimits``): its speeds, minimums and tolerances."""
+        return cls(max_linear=planner.max_vel_x, max_angular=planner.max_vel_theta,
+                   min_linear=planner.min_vel_trans, min_angular=planner.min_vel_theta,
+                   xy_goal_tolerance=planner.xy_goal_tolerance, yaw_goal_tolerance=planner.yaw_goal_tolerance)
+
 
 class PathFollower:
     """Turns poses into (linear, angular) commands along one path to one goal."""
@@ -57,7 +64,7 @@ class PathFollower:
         if self.state == FOLLOW:
             return self._follow(pose, dist)
         error = normalize_angle(self.goal_yaw - pose.yaw)
-        if abs(error) < lim.yaw_goal_tolerance * 0.4:
+        if abs(error) < lim.yaw_goal_tolerance * 0.5:
             self.state = DONE
             return 0.0, 0.0
         self.state = TURN_TO_GOAL

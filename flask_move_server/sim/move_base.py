@@ -9,6 +9,14 @@ localized pose. The goal succeeds once the robot stands still within
 preempts it, and a robot that stops making progress aborts it. Goals on
 ``move_base_simple/goal`` are forwarded to the action, as move_base does.
 
+It drives as the robot's DWA would, by the robot's own files (``dwa.PlannerLimits``
+from move_base.yaml and dwa_local_planner.yaml): at move_base's ``controller_frequency``,
+within DWA's top speeds and goal tolerances, and each command one of the velocities DWA
+may choose from the current ``/odom`` velocity (``dwa.nearest``). Where DWA would find
+no valid velocity for ``controller_patience``, the goal is aborted with the reason, as
+the real move_base aborts after its recoveries: a configuration that cannot drive the
+robot does not drive the simulation either.
+
 Every plan is published as a ``nav_msgs/Path`` in the map frame on
 ``plan_topic`` (navfn's ``move_base/NavfnROS/plan``). The planner can be
 swapped (``set_planner``: the known map in navigation mode, the growing SLAM
@@ -29,11 +37,12 @@ import actionlib
 import rospy
 from geometry_msgs.msg import PoseStamped, Twist
 from move_base_msgs.msg import MoveBaseAction, MoveBaseActionGoal, MoveBaseFeedback, MoveBaseResult
-from nav_msgs.msg import Path
+from nav_msgs.msg import Odometry, Path
 
 from flask_move_server.errors import PlanningFailed
 from flask_move_server.ros.convert import path_message, pose_from_msg, pose_stamped, twist
-from flask_move_server.sim.follower import DONE, PathFollower
+from flask_move_server.sim import dwa
+from flask_move_server.sim.follower import DONE, FollowerLimits, PathFollower
 from flask_move_server.sim.watches import ProgressWatch, ReplanWatch
 
 log = logging.getLogger(__name__)
@@ -46,14 +55,15 @@ class MoveBaseStandIn:
     """Plans on the simulated map and drives the real base controller along the path."""
 
     def __init__(self, sim_config, action, cmd_vel_topic, simple_goal_topic, frames, node, planner, limits,
-                 pose_source, plan_topic=None, serve=True):
+                 pose_source, plan_topic=None, serve=True, odom_topic="odom"):
         self.config = sim_config
         self.action = action
         self.frames = frames
         self.planner = planner
-        self.limits = limits
+        self.limits = limits  # dwa.PlannerLimits: the robot's own local planner configuration
         self.pose = pose_source
-        self._topics = (cmd_vel_topic, simple_goal_topic, plan_topic)
+        self._topics = (cmd_vel_topic, simple_goal_topic, plan_topic, odom_topic)
+        self._velocity = (0.0, 0.0)  # the base's (linear, angular) from /odom: where DWA's window is centred
         self._lock = threading.Lock()
         self._serving = serve
         self._endpoint = None
@@ -66,11 +76,12 @@ class MoveBaseStandIn:
         node.when_ready(self._setup)
 
     def _setup(self):
-        cmd_vel_topic, simple_goal_topic, plan_topic = self._topics
+        cmd_vel_topic, simple_goal_topic, plan_topic, odom_topic = self._topics
         with self._lock:
             if self._closed.is_set():
                 return
             self._cmd_vel = rospy.Publisher(cmd_vel_topic, Twist, queue_size=1, tcp_nodelay=True)
+            self._odom_sub = rospy.Subscriber(odom_topic, Odometry, self._on_odom, queue_size=1, tcp_nodelay=True)
             self._forward = rospy.Publisher(self.action + "/goal", MoveBaseActionGoal, queue_size=1)
             self._plan_pub = rospy.Publisher(plan_topic, Path, queue_size=1, latch=True) if plan_topic else None
             self._simple_sub = rospy.Subscriber(simple_goal_topic, PoseStamped, self._on_simple_goal, queue_size=1)
@@ -123,6 +134,10 @@ class MoveBaseStandIn:
         if endpoint is not None:
             endpoint.close()
 
+    def _on_odom(self, msg):
+        twist = msg.twist.twist
+        self._velocity = (twist.linear.x, twist.angular.z)
+
     def _on_simple_goal(self, msg):
         goal = MoveBaseActionGoal()
         goal.header.stamp = rospy.Time.now()
@@ -174,15 +189,16 @@ class MoveBaseStandIn:
         here = self.pose()
         path = (planner or self.planner).plan((here.x, here.y), (p.x, p.y))
         self._publish_plan(path)
-        return PathFollower(path, pose_from_msg(target.pose).yaw, self.limits)
+        return PathFollower(path, pose_from_msg(target.pose).yaw, FollowerLimits.from_planner(self.limits))
 
     def _follow(self, endpoint, follower, target):
         """Drive along the path until reached, preempted or stuck: (outcome, text)."""
         factor = self.config.speed_factor
-        period = max(0.01, 1.0 / (self.config.control_rate * factor))  # at most 100 Hz, however fast the sim
+        period = max(0.01, 1.0 / (self.limits.move_base_frequency * factor))  # at most 100 Hz, however fast
         stuck = ProgressWatch(self.config.stuck_timeout / factor)
         replan = ReplanWatch(self.planner, max(MIN_REPLAN_CHECK_PERIOD, REPLAN_CHECK_PERIOD / factor))
-        settle_until = None
+        patience = self.limits.controller_patience / factor
+        settle_until = no_velocity_since = None
         while not rospy.is_shutdown() and not self._closed.is_set() and not endpoint.withdrawn.is_set():
             if endpoint.server.is_preempt_requested():
                 return "preempted", "canceled"
@@ -190,8 +206,14 @@ class MoveBaseStandIn:
             if replan.due(follower.remaining(pose), time.monotonic()):
                 log.info("move_base stand-in: an obstacle seen across the path: planning again")
                 follower = self._plan(target, replan.planner)
-            linear, angular = follower.command(pose)
-            self._publish_velocity(linear, angular)
+            command = self._local_plan(follower.command(pose), follower.state == DONE)
+            if command is None:  # DWA: no valid trajectory; move_base brakes, then recovers or aborts
+                no_velocity_since = no_velocity_since or time.monotonic()
+                if time.monotonic() - no_velocity_since > patience:
+                    return "aborted", self._no_trajectory_reason()
+            else:
+                no_velocity_since = None
+            self._publish_velocity(*(command or (0.0, 0.0)))
             self._feedback(endpoint.server, target, pose)
             if follower.state == DONE:
                 settle_until = settle_until or time.monotonic() + 0.3 / factor
@@ -203,6 +225,23 @@ class MoveBaseStandIn:
                 return "aborted", "the robot made no progress for {} s".format(self.config.stuck_timeout)
             time.sleep(period)
         return "aborted", "the navigation stack stopped"
+
+    def _local_plan(self, wanted, stopping):
+        """The velocity DWA would send for ``wanted``: the nearest it may choose; None if it may choose none.
+
+        Stopping at the goal is DWA's stop-and-rotate controller, which brakes without sampling.
+        """
+        if stopping or wanted == (0.0, 0.0):
+            return 0.0, 0.0
+        return dwa.nearest(self.limits, wanted, self._velocity)
+
+    def _no_trajectory_reason(self):
+        at_rest = self._velocity == (0.0, 0.0)
+        reason = dwa.why_stuck_at_rest(self.limits) if at_rest else None
+        text = reason or "the local planner found no valid velocity from {:.2f} m/s, {:.2f} rad/s".format(
+            *self._velocity)
+        log.warning("move_base stand-in: %s", text)
+        return "no valid trajectory for {} s (controller_patience): {}".format(self.limits.controller_patience, text)
 
     def _publish_velocity(self, linear, angular):
         self._cmd_vel.publish(twist(linear, angular))
@@ -229,6 +268,7 @@ class MoveBaseStandIn:
             endpoint.close()
         if ready:
             self._simple_sub.unregister()
+            self._odom_sub.unregister()
             for pub in (self._forward, self._plan_pub):
                 if pub is not None:
                     pub.unregister()

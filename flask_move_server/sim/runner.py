@@ -72,8 +72,8 @@ class Simulation:
         own_planner = planner.Planner(self.costmap)
         self.move_base = MoveBaseStandIn(
             sim, config.navigation.action, config.drive.cmd_vel_topic, config.navigation.simple_goal_topic,
-            config.ros.frames, node, own_planner, follower_limits(sim), self.world.pose,
-            plan_topic=config.navigation.plan_topic, serve=False)
+            config.ros.frames, node, own_planner, planner_limits(sim), self.world.pose,
+            plan_topic=config.navigation.plan_topic, serve=False, odom_topic=config.drive.odom_topic)
         self.stacks = SimulatedStack(config, node, self.world, self.move_base, (self.map_path, grid, own_planner))
         if autostart:
             self.stacks.begin("navigation", None)
@@ -85,12 +85,23 @@ class Simulation:
         self.world.close()
 
 
-def follower_limits(sim):
-    """The path follower's limits from the ``sim`` config section."""
-    from flask_move_server.sim.follower import FollowerLimits
+def default_navigation_config():
+    """The folder of the shipped move_base.yaml and dwa_local_planner.yaml (the demo map's config/)."""
+    return os.path.dirname(os.path.dirname(default_map()))
 
-    return FollowerLimits(max_linear=sim.max_linear, max_angular=sim.max_angular,
-                          xy_goal_tolerance=sim.xy_goal_tolerance, yaw_goal_tolerance=sim.yaw_goal_tolerance)
+
+def planner_limits(sim):
+    """The robot's own DWA limits (move_base.yaml + dwa_local_planner.yaml), which the stand-in obeys."""
+    from flask_move_server.sim import dwa
+
+    folder = sim.navigation_config or default_navigation_config()
+    try:
+        return dwa.load(folder)
+    except OSError as exc:
+        raise ConfigError(exc.filename or folder, None, "sim.navigation_config: cannot read the navigation "
+                          "config the simulated move_base drives by: {}".format(exc.strerror))
+    except (TypeError, ValueError, AttributeError) as exc:
+        raise ConfigError(folder, None, "sim.navigation_config: not a move_base / DWA configuration: {}".format(exc))
 
 
 class OwnMaster:
