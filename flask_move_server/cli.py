@@ -62,7 +62,7 @@ class Server:
         self.modes = self._build_modes(stack)
         maps = self._build_maps(stack, store)
         app = create_app(self.config, robot, store, token=self.config.resolved_token(), events=self.events,
-                         modes=self.modes, maps=maps)
+                         modes=self.modes, maps=maps, doctor=self._build_doctor(robot))
         self.http = HttpServer(app, self.config.server)
         stack.callback(self.http.close)
         stack.callback(robot.stop)
@@ -89,6 +89,16 @@ class Server:
         self.maps = MapService(catalogue, store, source, modes=getattr(self, "modes", None), events=self.events,
                                margin=cfg.maps.image_margin, save_timeout=cfg.maps.save_timeout)
         return self.maps
+
+    def _build_doctor(self, robot):
+        """The first-boot doctor: ROS as the server's node sees it, and this machine."""
+        from flask_move_server.diagnostics.doctor import Doctor
+        from flask_move_server.ros.observe import RosObserver
+
+        cfg = self.config
+        topics = (cfg.diagnostics.scan_topic, cfg.drive.odom_topic, cfg.navigation.amcl_pose_topic)
+        observer = RosObserver(self._node, cfg.ros.frames, topics, robot.pose, robot.navigator)
+        return Doctor(observer, self.modes, cfg.maps_folder(), cfg.diagnostics.window)
 
     def _report(self, stack, robot):
         """The robot's state (pose, status, e-stop, move_base's plan) told on the event bus for GET /events."""

@@ -13,7 +13,7 @@ import sys
 import time
 import traceback
 
-from flask_move_server import __version__, client_maps, client_modes
+from flask_move_server import __version__, client_doctor, client_maps, client_modes
 from flask_move_server.api_client import DEFAULT_TIMEOUT, DEFAULT_URL, ExitStatus, RobotClient, dumps, waypoint_path
 from flask_move_server.client_text import LiveLine, describe_status, progress, waypoint_table, xy_yaw
 from flask_move_server.errors import ClientError
@@ -224,6 +224,7 @@ def build_parser():
     p.add_argument("--linear", type=_positive, default=0.2, help="forward speed, m/s (default %(default)s)")
     p.add_argument("--angular", type=_positive, default=0.8, help="turn rate, rad/s (default %(default)s)")
     p.set_defaults(run=cmd_drive)
+    client_doctor.add_parser(sub, _positive)
     p = sub.add_parser("discover", help="find robots on this network (mDNS)")
     p.add_argument("--wait", type=_positive, default=3.0, metavar="S", help="listen S seconds (default 3)")
     p.set_defaults(run=cmd_discover)

@@ -208,6 +208,7 @@ class SimConfig:
     stuck_timeout: float = checked(rules.positive, default=10.0)
     map_topic: str = "map"
     scan_topic: str = "scan"
+    laser_frame: str = "laser"
 
 
 @dataclass
@@ -235,6 +236,14 @@ class ModesConfig:
 
 
 @dataclass
+class DiagnosticsConfig:
+    """The first-boot doctor (``GET /diagnostics``, ``robotctl doctor``): what it listens to, and how long."""
+
+    window: float = checked(rules.positive, default=2.0)
+    scan_topic: str = "scan"
+
+
+@dataclass
 class Config:
     """The whole server configuration, one section per concern."""
 
@@ -248,6 +257,7 @@ class Config:
     sim: SimConfig = field(default_factory=SimConfig)
     maps: MapsConfig = field(default_factory=MapsConfig)
     modes: ModesConfig = field(default_factory=ModesConfig)
+    diagnostics: DiagnosticsConfig = field(default_factory=DiagnosticsConfig)
     source: str = internal_field(default="(defaults)")
 
     def resolved_token(self):

@@ -148,7 +148,7 @@ def test_rviz_sees_the_map_and_the_scan(sim):
     data = json.loads(out.stdout.strip().splitlines()[-1])
     assert data["map"] == [260, 180, 0.05, "map", [-1, 0, 100]]
     beams, range_min, range_max, frame, finite, nearest, farthest = data["scan"]
-    assert (beams, range_min, range_max, frame) == (360, pytest.approx(0.15), pytest.approx(8.0), "base_link")
+    assert (beams, range_min, range_max, frame) == (360, pytest.approx(0.15), pytest.approx(8.0), "laser")
     assert finite > 300  # inside the flat nearly every beam hits a wall
     assert 0.15 <= nearest and farthest <= 8.0
 
@@ -174,6 +174,27 @@ def test_an_rviz_nav_goal_on_move_base_simple_drives_the_robot(sim):
     assert out.returncode == 0, out.stderr
     wait_for(lambda: _close_to(sim.pose(), 1.5, 1.0, 0.0) and _still(sim, 0.3), timeout=60,
              message="the robot at the RViz goal (1.5, 1.0)")
+
+
+def test_the_doctor_passes_the_simulated_robot_and_its_box_test(sim):
+    r = sim.get("/diagnostics?seconds=1")
+    assert r.status_code == 200, r.text
+    ros = {c["name"]: c["level"] for c in r.json()["checks"][:7]}
+    assert ros == dict.fromkeys(["scan", "scan_range", "tf", "odom", "move_base", "amcl", "localization"], "pass")
+    assert r.json()["status"] != "fail"
+    # The dock faces into the flat; turned around, the wall 1.1 m behind it is the box ahead.
+    assert sim.post("/pose", {"x": 0.0, "y": 0.0, "yaw": math.pi}).status_code == 200
+    wait_for(lambda: abs(abs(sim.pose()["yaw"]) - math.pi) < 0.05, timeout=10, message="turned around")
+    line = next(c for c in sim.get("/diagnostics?seconds=0.5&box=1").json()["checks"] if c["name"] == "laser_yaw")
+    assert line["level"] == "pass", line
+
+
+def test_robotctl_doctor_on_the_simulated_robot(sim, capsys):
+    from flask_move_server import client
+
+    assert client.main(["--url", sim.url, "doctor", "--seconds", "1"]) == 0
+    out = capsys.readouterr().out
+    assert "PASS  tf            tf map -> odom -> base_link -> laser" in out
 
 
 def test_sigterm_stops_everything_including_its_master(sim):

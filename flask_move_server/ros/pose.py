@@ -1,5 +1,6 @@
 """Where the robot is: tf ``map → base_link``, falling back to ``/amcl_pose``."""
 
+import math
 from dataclasses import dataclass
 
 import rospy
@@ -35,6 +36,7 @@ class PoseTracker:
         self.max_age = max_age
         self._amcl_topic = amcl_pose_topic
         self._amcl = None
+        self.amcl_spread = None  # std dev of /amcl_pose's x (m), y (m), yaw (rad): how sure AMCL is
         self._buffer = None
         self._subscriptions = []
         if node is None:
@@ -91,6 +93,8 @@ class PoseTracker:
 
     def _on_amcl(self, msg):
         pose = pose_from_msg(msg.pose.pose)
+        c = msg.pose.covariance
+        self.amcl_spread = tuple(math.sqrt(max(0.0, v)) for v in (c[0], c[7], c[35]))
         self._amcl = PoseReading(pose, msg.header.frame_id or self._frames.map, msg.header.stamp.to_sec(), "amcl_pose")
 
     def as_dict(self, reading=None):

@@ -9,6 +9,10 @@ each message the world publishes what AMCL would: tf ``map → odom`` such that
 (true pose ∘ odometry⁻¹), and ``/amcl_pose``, while ``localizing`` (navigation
 mode; in mapping mode the simulated SLAM publishes ``map → odom`` instead, and in
 idle nobody does). ``/scan`` is cast at ``scan_rate`` while someone listens.
+The scan is in the lidar's own frame (``sim.laser_frame``), mounted as docs/deploy.md mounts
+the A1 (motor backwards: the frame's +x points back, yaw π, 0.12 m up), with the static tf
+``base_link → laser`` the launch files publish on the robot, so everything downstream (the
+doctor's box test, RViz, a real AMCL or gmapping against this world) sees what the robot gives.
 ``/map`` is not the world's: the mode in force publishes it (``map_server.py``,
 ``mapping.py``). A pose on ``/initialpose`` (RViz's 2D Pose Estimate) puts the
 robot there, if its body fits: the sim takes the estimate as the truth.
@@ -16,6 +20,7 @@ robot there, if its body fits: the sim takes the estimate as the truth.
 
 import collections
 import logging
+import math
 import threading
 import time
 
@@ -25,11 +30,12 @@ from geometry_msgs.msg import PoseWithCovarianceStamped
 from nav_msgs.msg import Odometry
 from sensor_msgs.msg import LaserScan
 
-from flask_move_server.geometry import compose, interpolate, inverse
+from flask_move_server.geometry import Pose2D, compose, interpolate, inverse
 from flask_move_server.ros.convert import pose_from_msg, transform_message, write_pose
 
 log = logging.getLogger(__name__)
 
+LASER_MOUNT = (0.0, 0.0, 0.12, math.pi)  # x, y, z (m), yaw (rad) of the laser frame on base_link
 AMCL_COVARIANCE = [0.0025, 0, 0, 0, 0, 0, 0, 0.0025, 0, 0, 0, 0] + [0] * 23 + [0.0007]
 
 
@@ -64,7 +70,9 @@ class SimWorld:
             "scan": rospy.Publisher(self.config.scan_topic, LaserScan, queue_size=1),
             "amcl": rospy.Publisher(self._amcl_topic, PoseWithCovarianceStamped, queue_size=1),
             "tf": tf2_ros.TransformBroadcaster(),
+            "tf_static": tf2_ros.StaticTransformBroadcaster(),
         }
+        self._pubs["tf_static"].sendTransform(laser_mount_message(self.frames.base_link, self.config.laser_frame))
         self._subs = (rospy.Subscriber(self._odom_topic, Odometry, self._on_odom, queue_size=5),
                       rospy.Subscriber(self._initial_pose_topic, PoseWithCovarianceStamped, self._on_initial_pose,
                                        queue_size=1))
@@ -102,7 +110,10 @@ class SimWorld:
         pub = self._pubs["scan"]
         if pub.get_num_connections() == 0:
             return
-        pub.publish(scan_message(self.laser, self.laser.scan(pose), self.frames.base_link, self.config.scan_rate))
+        ranges = self.laser.scan(pose)
+        half = len(ranges) // 2  # beam 0 points back in base_link; in the laser frame (yaw pi) it points ahead
+        pub.publish(scan_message(self.laser, ranges[half:] + ranges[:half], self.config.laser_frame,
+                                 self.config.scan_rate))
 
     # the AMCL stand-in -------------------------------------------------------------
 
@@ -176,6 +187,14 @@ def scan_message(laser, ranges, frame, rate):
     msg.scan_time = 1.0 / rate
     msg.range_min, msg.range_max = laser.range_min, laser.range_max
     msg.ranges = ranges
+    return msg
+
+
+def laser_mount_message(base_link, laser_frame):
+    """The static tf base_link -> laser of the simulated robot's lidar (``LASER_MOUNT``)."""
+    x, y, z, yaw = LASER_MOUNT
+    msg = transform_message(Pose2D(x, y, yaw), rospy.Time.now(), base_link, laser_frame)
+    msg.transform.translation.z = z
     return msg
 
 

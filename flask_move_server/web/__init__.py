@@ -11,6 +11,7 @@ from flask_move_server import ast_guard
 from flask_move_server.events import EventBus
 from flask_move_server.modes.manager import ModeManager
 from flask_move_server.web import auth, error_handlers, guard
+from flask_move_server.web.diagnostics import diagnostics_api
 from flask_move_server.web.estop import estop
 from flask_move_server.web.events import events_api
 from flask_move_server.web.maps import maps_api
@@ -62,12 +63,13 @@ class UntypedResponse(Response):
     default_mimetype = None
 
 
-def create_app(config, robot, store, token=None, events=None, modes=None, maps=None):
+def create_app(config, robot, store, token=None, events=None, modes=None, maps=None, doctor=None):
     """Build the WSGI app serving ``robot`` and the waypoints in ``store``; ``events``: the server's bus.
 
     ``modes``: the server's ModeManager (None: modes are off, the stack runs outside this server).
     ``maps``: the :class:`~flask_move_server.maps.service.MapService` behind ``/map`` and ``/maps``
     (default: the configured maps folder, no live map, no mode manager).
+    ``doctor``: the :class:`~flask_move_server.diagnostics.doctor.Doctor` behind ``/diagnostics``.
     """
     events = events if events is not None else EventBus()
     modes = modes if modes is not None else ModeManager(config, None)
@@ -80,7 +82,8 @@ def create_app(config, robot, store, token=None, events=None, modes=None, maps=N
     app.config["MAX_CONTENT_LENGTH"] = config.server.max_body_bytes
     app.json.sort_keys = False
     app.extensions["flask_move_server"] = {
-        "config": config, "robot": robot, "store": store, "events": events, "maps": maps, "modes": modes}
+        "config": config, "robot": robot, "store": store, "events": events, "maps": maps, "modes": modes,
+        "doctor": doctor}
     error_handlers.init_app(app)
     guard.init_app(app, config)  # before auth: it protects robots without a token too
     auth.init_app(app, token)
@@ -90,6 +93,7 @@ def create_app(config, robot, store, token=None, events=None, modes=None, maps=N
     app.register_blueprint(events_api)
     app.register_blueprint(description)
     app.register_blueprint(modes_routes)
+    app.register_blueprint(diagnostics_api)
     if config.server.static:
         _add_page(app)
     return app

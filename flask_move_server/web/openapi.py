@@ -60,6 +60,7 @@ def build(config):
     paths.update(_maps())
     paths.update(_static_files())
     paths.update(_mode_paths(config))
+    paths.update(_diagnostics())
     if config.server.static:
         paths.update(_page())
     return {
@@ -150,6 +151,24 @@ def _mode_paths(config):
                                      {200: _ok({"pose": _ref("Pose"), "name": {"type": "string"}})},
                                      errors=(404, 409, 503))},
     }
+
+
+def _diagnostics():
+    """``/diagnostics``: the first-boot doctor (docs/api.md, "Diagnostics")."""
+    line = _object({"name": {"type": "string"}, "level": {"enum": ["pass", "warn", "fail", "skip"]},
+                    "summary": {"type": "string"}, "advice": {"type": "string"}},
+                   ["name", "level", "summary", "advice"])
+    report = _object({"status": {"enum": ["pass", "warn", "fail"]}, "mode": {"type": "string", "nullable": True},
+                      "window": {"type": "number"}, "at": {"type": "string"},
+                      "checks": {"type": "array", "items": line}}, ["status", "checks"])
+    operation = _operation("First-boot checks: lidar, tf, odometry, move_base, AMCL, the Pi's power, heat, "
+                           "load, disk and clock", None, {200: _json(report)}, errors=(400,))
+    operation["parameters"] = [
+        {"name": "seconds", "in": "query", "required": False, "schema": {"type": "number", "minimum": 0.5,
+         "maximum": 10}, "description": "how long to listen to /scan and /odom (default diagnostics.window)"},
+        {"name": "box", "in": "query", "required": False, "schema": {"enum": ["0", "1"]},
+         "description": "1: also the box-ahead test of the laser's yaw (a box about 1 m ahead, nothing nearer)"}]
+    return {"/diagnostics": {"get": operation}}
 
 
 def _maps():
