@@ -4,6 +4,7 @@ import {Joystick, KeyDrive} from "./joystick.js";
 import {Live} from "./live.js";
 import {MapView} from "./mapview.js";
 import {initPanels, showMode, loadMaps} from "./panels.js";
+import {initHealth} from "./health.js";
 
 const $ = (id) => document.getElementById(id);
 const map = new MapView($("map"));
@@ -282,6 +283,7 @@ for (const tab of document.querySelectorAll("#tabs button")) {
 $("mode").onclick = () => flashHint($("mode").title || "");  // a phone has no hover: tap the mode for its message
 $("token").onclick = () => askTokenAgain().then(() => resync());
 initPanels({call, report, setGesture, isLive});
+initHealth();
 setGesture("go");
 showConnection("connecting");
 live.start();
