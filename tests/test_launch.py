@@ -30,6 +30,8 @@ VARIANTS = [
     ("mapping.launch", ["slam:=hector"]),
     ("navigation.launch", []),
     ("navigation.launch", ["server:=false", "map:=/tmp/some/map.yaml"]),
+    ("navigation.launch", ["server:=false", "lidar:=false"]),  # the stack on flask-move-server --sim
+    ("mapping.launch", ["server:=false", "lidar:=false"]),
     ("server.launch", []),
     ("rviz.launch", []),
     ("rviz.launch", ["view:=mapping"]),

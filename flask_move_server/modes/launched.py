@@ -27,11 +27,19 @@ from flask_move_server.modes.targets import MODES
 
 log = logging.getLogger(__name__)
 
+
+def _sim_default_map():
+    from flask_move_server.sim.runner import default_map
+
+    return default_map()
+
 class LaunchedStack:
     """Runs one mode's launch file at a time; ``start`` blocks until ready, ``stop`` until all is gone."""
 
-    def __init__(self, modes, map_topic="map", action="move_base", master_uri=None):
+    def __init__(self, modes, map_topic="map", action="move_base", master_uri=None, world=None):
+        """``world``: the simulated world's map (``--sim``): its lidar is the world's, and it is the default map."""
         self.modes = modes
+        self.world = world
         self.map_topic = readiness.global_name(map_topic)
         self.status_topic = readiness.global_name(action.rstrip("/") + "/status")
         self.master_uri = master_uri
@@ -47,7 +55,8 @@ class LaunchedStack:
     @classmethod
     def from_config(cls, config):
         """The backend for a server :class:`~flask_move_server.config.Config`."""
-        return cls(config.modes, config.maps.topic, config.navigation.action)
+        world = (config.sim.map or _sim_default_map()) if config.sim.enabled else None
+        return cls(config.modes, config.maps.topic, config.navigation.action, world=world)
 
     def start(self, mode, map_yaml=None, on_exit=None):
         """Start ``mode``'s stack and block until it is ready; StackFailed says what went wrong.
@@ -97,6 +106,9 @@ class LaunchedStack:
         options = ["--skip-log-check", "--no-summary", "--disable-title",  # no du of ROS_HOME, no param dump
                    "--sigint-timeout={:g}".format(self.modes.stop_timeout), "--sigterm-timeout=2"]
         argv = [shutil.which("roslaunch") or "roslaunch"] + options + launch.split() + ["server:=false"]
+        if self.world is not None:
+            argv.append("lidar:=false")  # the simulated world publishes /scan and the laser's tf
+        map_yaml = map_yaml or self.world
         if mode == "navigation" and map_yaml:
             argv.append("map:={}".format(os.path.abspath(map_yaml)))
         return argv

@@ -46,6 +46,11 @@ class Simulation:
     navigation on its own map, as ``--sim`` always did; a mode manager that
     restores a mode itself passes ``autostart=False``, so nothing runs until it
     calls ``stacks.start``.
+
+    With ``modes.stack: roslaunch`` (``world_only``) the simulation is the world alone: the robot's
+    physics, ``/scan`` in the laser's frame and the laser's static tf, with the drive's own
+    ``/odom`` and tf. No move_base, AMCL, SLAM or map_server stand-in: the shipped launch files
+    start the real ones (on a PC with ROS Noetic's navigation packages), ``lidar:=false``.
     """
 
     def __init__(self, config, node, drive, autostart=True):
@@ -68,7 +73,13 @@ class Simulation:
         if self.costmap.lethal_at(0.0, 0.0):
             raise ConfigError(self.map_path, "origin", "the robot starts at x=0, y=0 of the map frame, "
                               "which is in or too close to an obstacle (or off the map)")
-        self.world = SimWorld(config, node, self.body, laser.Laser(grid), wheel_speeds)
+        self.world_only = config.stack_kind() == "roslaunch"
+        self.world = SimWorld(config, node, self.body, laser.Laser(grid), wheel_speeds,
+                              stand_ins=not self.world_only)
+        self.move_base = self.stacks = None
+        if self.world_only:
+            log.info("simulated world only: the navigation stack is the launch files' (modes.stack: roslaunch)")
+            return
         own_planner = planner.Planner(self.costmap)
         self.move_base = MoveBaseStandIn(
             sim, config.navigation.action, config.drive.cmd_vel_topic, config.navigation.simple_goal_topic,
@@ -80,9 +91,9 @@ class Simulation:
 
     def close(self):
         """Stop the mode, the stand-in, then the world. Idempotent."""
-        self.stacks.close()
-        self.move_base.close()
-        self.world.close()
+        for part in (self.stacks, self.move_base, self.world):
+            if part is not None:
+                part.close()
 
 
 def default_navigation_config():

@@ -42,8 +42,10 @@ AMCL_COVARIANCE = [0.0025, 0, 0, 0, 0, 0, 0, 0.0025, 0, 0, 0, 0] + [0] * 23 + [0
 class SimWorld:
     """Moves the simulated robot and publishes what its sensors and localization would."""
 
-    def __init__(self, config, node, body, laser, wheel_speeds):
+    def __init__(self, config, node, body, laser, wheel_speeds, stand_ins=True):
+        """``stand_ins`` False: the world only (physics, /scan, the laser's tf), for the real stack to run on."""
         sim_config = config.sim
+        self.stand_ins = stand_ins
         self.config = sim_config
         self._amcl_topic = config.navigation.amcl_pose_topic
         self._initial_pose_topic = config.modes.initial_pose_topic
@@ -68,14 +70,15 @@ class SimWorld:
             return
         self._pubs = {
             "scan": rospy.Publisher(self.config.scan_topic, LaserScan, queue_size=1),
-            "amcl": rospy.Publisher(self._amcl_topic, PoseWithCovarianceStamped, queue_size=1),
-            "tf": tf2_ros.TransformBroadcaster(),
             "tf_static": tf2_ros.StaticTransformBroadcaster(),
         }
         self._pubs["tf_static"].sendTransform(laser_mount_message(self.frames.base_link, self.config.laser_frame))
-        self._subs = (rospy.Subscriber(self._odom_topic, Odometry, self._on_odom, queue_size=5),
-                      rospy.Subscriber(self._initial_pose_topic, PoseWithCovarianceStamped, self._on_initial_pose,
-                                       queue_size=1))
+        if self.stand_ins:  # the AMCL stand-in, and pose estimates taken as the truth
+            self._pubs["amcl"] = rospy.Publisher(self._amcl_topic, PoseWithCovarianceStamped, queue_size=1)
+            self._pubs["tf"] = tf2_ros.TransformBroadcaster()
+            self._subs = (rospy.Subscriber(self._odom_topic, Odometry, self._on_odom, queue_size=5),
+                          rospy.Subscriber(self._initial_pose_topic, PoseWithCovarianceStamped,
+                                           self._on_initial_pose, queue_size=1))
         self._thread = threading.Thread(target=self._run, name="sim-world", daemon=True)
         self._thread.start()
         log.info("simulated world: map %s (%d x %d cells, %.3f m), robot at %s, speed factor %s",
@@ -172,7 +175,8 @@ class SimWorld:
             for sub in self._subs:
                 sub.unregister()
             for name in ("scan", "amcl"):
-                self._pubs[name].unregister()
+                if name in self._pubs:
+                    self._pubs[name].unregister()
             self._pubs = None
 
 

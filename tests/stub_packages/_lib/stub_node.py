@@ -59,3 +59,51 @@ def static_tf(parent, child):
     broadcaster = tf2_ros.StaticTransformBroadcaster()
     broadcaster.sendTransform(t)
     return broadcaster
+
+
+def report_inputs(scan_topic="scan", links=(), odom_topic=None, seconds=3.0):
+    """Listen as the real node would, then set ``~inputs``: what it would have had to work with.
+
+    The real AMCL, gmapping and move_base need ``/scan`` arriving (gmapping: with the same beam
+    count every time), the tf links ``links`` at each scan's stamp (``"@scan"`` stands for the
+    scan's own frame), and DWA the velocity on ``odom_topic``. After ``seconds`` of listening the
+    result lands on the parameter server as ``~inputs`` for the tests to read.
+    """
+    import threading
+    import time
+
+    import rospy
+    import tf2_ros
+    from nav_msgs.msg import Odometry
+    from sensor_msgs.msg import LaserScan
+
+    buffer = tf2_ros.Buffer(cache_time=rospy.Duration(10.0))
+    heard = {"scan": [], "odom": [], "listener": tf2_ros.TransformListener(buffer)}
+    subs = [rospy.Subscriber(scan_topic, LaserScan, lambda m: heard["scan"].append((time.monotonic(), m)))]
+    if odom_topic:
+        subs.append(rospy.Subscriber(odom_topic, Odometry, lambda m: heard["odom"].append((time.monotonic(), m))))
+
+    def rate(samples):
+        return (len(samples) - 1) / (samples[-1][0] - samples[0][0]) if len(samples) > 1 else 0.0
+
+    def link(parent, child, scan):
+        child = scan.header.frame_id if child == "@scan" else child
+        try:
+            buffer.lookup_transform(parent, child, scan.header.stamp, rospy.Duration(0.5))
+            return True
+        except (tf2_ros.LookupException, tf2_ros.ConnectivityException, tf2_ros.ExtrapolationException) as exc:
+            return "{} -> {}: {}".format(parent, child, exc)
+
+    def report():
+        time.sleep(seconds)
+        scans = list(heard["scan"])
+        inputs = {"scans": len(scans), "scan_rate": rate(scans), "odom_rate": rate(list(heard["odom"]))}
+        if scans:
+            last = scans[-1][1]
+            inputs.update(scan_frame=last.header.frame_id, beams=sorted({len(m.ranges) for _, m in scans}),
+                          range_max=last.range_max,
+                          links={"{} -> {}".format(p, c): link(p, c, last) for p, c in links})
+        rospy.set_param("~inputs", inputs)
+
+    threading.Thread(target=report, daemon=True).start()
+    return heard, subs
