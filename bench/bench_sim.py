@@ -94,6 +94,21 @@ def planning_rows(repeat):
 
 # 2. the sim process ------------------------------------------------------------------------
 
+def dwa_step_rows(repeat=2000):
+    """One control step of the move_base stand-in's local planner: DWA's window, samples, the nearest."""
+    from flask_move_server.sim import dwa
+
+    limits = dwa.load(os.path.join(ROOT, "config"))
+    cases = [("from rest", (0.0, 0.0)), ("cruising 0.3 m/s", (0.3, 0.2)), ("turning 1.0 rad/s", (0.0, 1.0))]
+    rows = []
+    for name, current in cases:
+        start = time.perf_counter()
+        for _ in range(repeat):
+            dwa.nearest(limits, (0.25, 0.4), current)
+        rows.append((name, len(dwa.samples(limits, *current)), (time.perf_counter() - start) / repeat * 1e6))
+    return rows, limits.move_base_frequency
+
+
 def cpu_seconds(pid):
     with open("/proc/{}/stat".format(pid)) as f:
         fields = f.read().rsplit(")", 1)[1].split()
@@ -171,6 +186,12 @@ def main(argv=None):
     for name, med, worst, inflate, length, corners in planning_rows(args.repeat):
         print("| {} | {:.1f} | {:.1f} | {:.0f} | {:.1f} | {} |".format(name, med, worst, inflate, length, corners))
     idle, driving, pose, scan_hz, stats = sim_rows(args.drive_seconds)
+    rows, hz = dwa_step_rows()
+    print("\n## The move_base stand-in's DWA step (config/, at {:g} Hz)\n".format(hz))
+    print("| current velocity | valid samples | µs per step |")
+    print("|---|---:|---:|")
+    for name, count, micros in rows:
+        print("| {} | {} | {:.0f} |".format(name, count, micros))
     print("\n## `flask-move-server --sim` (speed factor 1, /scan subscribed)\n")
     print("| measure | value |")
     print("|---|---:|")
