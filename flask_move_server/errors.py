@@ -249,3 +249,9 @@ class TooManyStreams(MoveServerError, RuntimeError):
     """Every ``GET /events`` stream the server allows (``server.max_streams``) is open already."""
 
     code = "too_many_streams"
+
+
+class DiagnosticsBusy(MoveServerError, RuntimeError):
+    """The doctor is already examining the robot with other settings: one examination at a time."""
+
+    code = "diagnostics_busy"

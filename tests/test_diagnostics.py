@@ -275,3 +275,31 @@ def test_overall_is_the_worst_level():
     assert checks.overall([line("a", "pass", ""), line("b", "skip", "")]) == "pass"
     assert checks.overall([line("a", "pass", ""), line("b", "warn", "")]) == "warn"
     assert checks.overall([line("a", "warn", ""), line("b", "fail", "")]) == "fail"
+
+
+def test_callers_at_once_share_one_examination_and_another_kind_is_refused(tmp_path):
+    from flask_move_server.errors import DiagnosticsBusy
+
+    class SlowObserver:
+        calls = 0
+
+        def observe(self, seconds, mode):
+            SlowObserver.calls += 1
+            started.set()
+            release.wait(5)
+            return checks.RosObservations(False, mode, checks.ScanSample(), checks.TopicSample(), [], False, 0, None)
+
+    started, release = threading.Event(), threading.Event()
+    doctor = Doctor(SlowObserver(), None, str(tmp_path))
+    reports = []
+    callers = [threading.Thread(target=lambda: reports.append(doctor.examine(1.0))) for _ in range(3)]
+    callers[0].start()
+    assert started.wait(5)
+    for t in callers[1:]:
+        t.start()
+    with pytest.raises(DiagnosticsBusy):
+        doctor.examine(1.0, box=True)
+    release.set()
+    for t in callers:
+        t.join(5)
+    assert SlowObserver.calls == 1 and len(reports) == 3 and reports[0] is reports[1] is reports[2]

@@ -35,6 +35,7 @@ STATUS = (
     (errors.ModeSwitching, 409),
     (errors.ModesOff, 409),
     (errors.WrongMode, 409),
+    (errors.DiagnosticsBusy, 409),
     (errors.MapFileError, 503),
     (errors.StackFailed, 503),
     (errors.TooManyStreams, 503),

@@ -162,7 +162,7 @@ def _diagnostics():
                       "window": {"type": "number"}, "at": {"type": "string"},
                       "checks": {"type": "array", "items": line}}, ["status", "checks"])
     operation = _operation("First-boot checks: lidar, tf, odometry, move_base, AMCL, the Pi's power, heat, "
-                           "load, disk and clock", None, {200: _json(report)}, errors=(400,))
+                           "load, disk and clock", None, {200: _json(report)}, errors=(400, 409))
     operation["parameters"] = [
         {"name": "seconds", "in": "query", "required": False, "schema": {"type": "number", "minimum": 0.5,
          "maximum": 10}, "description": "how long to listen to /scan and /odom (default diagnostics.window)"},
