@@ -223,7 +223,7 @@ class MoveBaseStandIn:
                 settle_until = None
             if stuck.stalled(pose, time.monotonic()):
                 return "aborted", "the robot made no progress for {} s".format(self.config.stuck_timeout)
-            time.sleep(period)
+            endpoint.withdrawn.wait(period)  # a withdrawal (mode switch) ends the goal at once, not a period later
         return "aborted", "the navigation stack stopped"
 
     def _local_plan(self, wanted, stopping):
