@@ -97,13 +97,20 @@ def ros_checks(obs, box=False):
 
 
 def scan_check(scan):
-    if scan.count == 0:
-        return Check("scan", FAIL, "no /scan arrived", "Is the lidar plugged in and spinning? ls -l /dev/ttyUSB*; "
-                     "journalctl -u flask-move-server | grep -i rplidar; docs/deploy.md, Troubleshooting: No /scan.")
-    if scan.rate < SCAN_MIN_RATE:
-        return Check("scan", WARN, "/scan at {:.1f} Hz, expected 5.5-10".format(scan.rate),
-                     "A slow lidar motor (a weak USB port: use a powered hub) or a busy Pi.")
-    return Check("scan", PASS, "/scan at {:.1f} Hz in frame {}".format(scan.rate, scan.frame))
+    return _rate_check("scan", scan, SCAN_MIN_RATE, "5.5-10",
+                       "Is the lidar plugged in and spinning? ls -l /dev/ttyUSB*; journalctl -u flask-move-server "
+                       "| grep -i rplidar; docs/deploy.md, Troubleshooting: No /scan.",
+                       "A slow lidar motor (a weak USB port: use a powered hub) or a busy Pi.",
+                       " in frame {}".format(scan.frame))
+
+
+def _rate_check(topic, sample, minimum, expected, advice_none, advice_slow, detail=""):
+    """A topic that must arrive: fail when nothing came, warn below ``minimum`` Hz."""
+    if sample.count == 0:
+        return Check(topic, FAIL, "no /{} arrived".format(topic), advice_none)
+    if sample.rate < minimum:
+        return Check(topic, WARN, "/{} at {:.1f} Hz, expected {}".format(topic, sample.rate, expected), advice_slow)
+    return Check(topic, PASS, "/{} at {:.1f} Hz{}".format(topic, sample.rate, detail))
 
 
 def range_check(scan):
@@ -142,13 +149,10 @@ def _tf_advice(index, link):
 
 
 def odom_check(odom):
-    if odom.count == 0:
-        return Check("odom", FAIL, "no /odom arrived", "The base driver publishes it: drive.backend must not be "
-                     "none unless another node drives the base; robotctl status shows the motors.")
-    if odom.rate < ODOM_MIN_RATE:
-        return Check("odom", WARN, "/odom at {:.1f} Hz, expected 20 (drive.odom_rate)".format(odom.rate),
-                     "A busy Pi (see the load line) or a slow serial base.")
-    return Check("odom", PASS, "/odom at {:.1f} Hz".format(odom.rate))
+    return _rate_check("odom", odom, ODOM_MIN_RATE, "20 (drive.odom_rate)",
+                       "The base driver publishes it: drive.backend must not be none unless another node drives "
+                       "the base; robotctl status shows the motors.",
+                       "A busy Pi (see the load line) or a slow serial base.")
 
 
 def move_base_check(obs):
