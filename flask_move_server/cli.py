@@ -98,7 +98,7 @@ class Server:
         cfg = self.config
         topics = (cfg.diagnostics.scan_topic, cfg.drive.odom_topic, cfg.navigation.amcl_pose_topic)
         observer = RosObserver(self._node, cfg.ros.frames, topics, robot.pose, robot.navigator)
-        return Doctor(observer, self.modes, cfg.maps_folder(), cfg.diagnostics.window)
+        return Doctor(observer, self.modes, cfg.maps_folder(), cfg.diagnostics.window, simulated=cfg.sim.enabled)
 
     def _report(self, stack, robot):
         """The robot's state (pose, status, e-stop, move_base's plan) told on the event bus for GET /events."""

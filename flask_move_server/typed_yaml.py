@@ -61,7 +61,7 @@ def _refuse_unknown(data, fields, source, prefix, moved):
     if unknown:
         key = str(unknown[0])
         if key in moved:
-            raise ConfigError(source, prefix + key, "no longer here: " + moved[key])
+            raise ConfigError(source, prefix + key, "no longer a setting, remove it: " + moved[key])
         close = difflib.get_close_matches(key, list(fields), n=1)
         hint = "; did you mean {!r}?".format(close[0]) if close else "; known keys: {}".format(", ".join(fields))
         raise ConfigError(source, prefix + key, "unknown key" + hint)

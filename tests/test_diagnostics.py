@@ -303,3 +303,13 @@ def test_callers_at_once_share_one_examination_and_another_kind_is_refused(tmp_p
     for t in callers:
         t.join(5)
     assert SlowObserver.calls == 1 and len(reports) == 3 and reports[0] is reports[1] is reports[2]
+
+
+def test_the_box_test_on_the_simulated_lidar_never_asks_to_change_its_mount():
+    link = checks.TfLink("base_link", "laser", True, None, math.pi)
+    scan = checks.ScanSample(count=10, rate=5.5, frame="laser", range_max=8.0, nearest=(1.1, 0.0))
+    obs = checks.RosObservations(True, "navigation", scan, checks.TopicSample(), [link], True, 1, None)
+    line = checks.box_check(obs, simulated=True)
+    assert line.level == "fail" and "ROBOT_LASER_YAW" not in line.advice and "face a wall" in line.advice
+    scan.nearest = (1.0, math.pi + 1e-9)  # straight ahead, a hair off: "+0 deg", never "-0 deg"
+    assert "shows at +0 deg" in checks.box_check(obs).summary

@@ -81,18 +81,23 @@ def overall(checks):
     return FAIL if FAIL in levels else WARN if WARN in levels else PASS
 
 
-def ros_checks(obs, box=False):
-    """Every ROS check, in the order to fix things on a new robot."""
+BOX_HINT = ("Put a box about 1 m straight ahead of the robot, with nothing else within about 1.5 m in any "
+            "direction (behind included), and run the box test (robotctl doctor --box, or the Health panel's button).")
+SIM_BOX_HINT = ("The simulated lidar is mounted right (yaw pi, as docs/deploy.md mounts an A1): for its box test, "
+                "turn the robot to face a wall about 1 m away (the page's Pose, or POST /pose) and run it again.")
+
+
+def ros_checks(obs, box=False, simulated=False):
+    """Every ROS check, in the order to fix things on a new robot (``simulated``: the sim's own lidar)."""
     if not obs.connected:
         return [Check("ros", FAIL, "no ROS master answers", "Start roscore (sudo systemctl start roscore) "
                       "and check ROS_MASTER_URI; GET /health says when the server is connected.")]
     checks = [scan_check(obs.scan), range_check(obs.scan), tf_check(obs.links), odom_check(obs.odom),
               move_base_check(obs), amcl_check(obs), localization_check(obs)]
-    checks.append(box_check(obs) if box else Check(
+    checks.append(box_check(obs, simulated) if box else Check(
         "laser_yaw", SKIP, "laser yaw {:.2f} rad (base_link -> {}): only a box ahead can prove it".format(
             laser_link(obs).yaw if laser_link(obs) else 0.0, obs.scan.frame or "laser"),
-        "Put a box about 1 m straight ahead of the robot, nothing else that close, and run the box "
-        "test (robotctl doctor --box, or the Health panel's button)."))
+        SIM_BOX_HINT if simulated else BOX_HINT))
     return checks
 
 
@@ -195,23 +200,29 @@ def laser_link(obs):
     return obs.links[-1] if obs.links and obs.links[-1].child == obs.scan.frame else None
 
 
-def box_check(obs):
+def box_check(obs, simulated=False):
     """Where the nearest thing within reach shows, in base_link: a box put 1 m ahead must show ahead."""
     if obs.scan.nearest is None:
         return Check("laser_yaw", FAIL, "nothing within {:g}-{:g} m of the lidar".format(*BOX_RANGE),
-                     "Put a box about 1 m straight ahead of the robot and run the test again.")
+                     SIM_BOX_HINT if simulated else BOX_HINT)
     link = laser_link(obs)
     yaw = link.yaw if link else 0.0
     distance, angle = obs.scan.nearest
     bearing = _angle(angle + yaw)
-    where = "the nearest thing, {:.2f} m away, shows at {:+.0f} deg".format(distance, math.degrees(bearing))
+    degrees = int(round(math.degrees(bearing))) or 0  # no "-0 deg"
+    where = "the nearest thing, {:.2f} m away, shows at {:+d} deg".format(distance, degrees)
     if abs(bearing) <= BOX_AHEAD:
         return Check("laser_yaw", PASS, where + ": ahead, so the laser yaw ({:.2f} rad) is right".format(yaw))
+    if simulated:
+        return Check("laser_yaw", FAIL, where + ", not ahead: it is not a box in front of the robot",
+                     SIM_BOX_HINT)
     better = _angle(yaw - round(bearing / (math.pi / 2)) * (math.pi / 2))
     return Check("laser_yaw", FAIL, where + ", not ahead: the laser yaw {:.2f} rad is wrong, or the box is not "
                  "the nearest thing".format(yaw),
-                 "If the box is the nearest thing: set ROBOT_LASER_YAW={:.5f} in /etc/flask-move-server/ros.env "
-                 "(a number, not pi) and restart flask-move-server.".format(better))
+                 "Nothing else within about 1.5 m (behind the robot included)? Then the yaw is wrong: set "
+                 "ROBOT_LASER_YAW={:.5f} in /etc/flask-move-server/ros.env (a number, not pi) and restart "
+                 "flask-move-server. Otherwise clear around the robot, or move it, and run the test again."
+                 .format(better))
 
 
 def _angle(value):

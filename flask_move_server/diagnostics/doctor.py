@@ -27,12 +27,13 @@ class _Examination:
 class Doctor:
     """Examines the robot on request; holds no state between examinations."""
 
-    def __init__(self, observer, modes, maps_folder, window=2.0, host_root="/"):
+    def __init__(self, observer, modes, maps_folder, window=2.0, host_root="/", simulated=False):
         self._observer = observer
         self._modes = modes
         self._maps_folder = maps_folder
         self.window = window
         self._host_root = host_root
+        self._simulated = simulated
         self._lock = threading.Lock()
         self._running = None
 
@@ -63,7 +64,7 @@ class Doctor:
 
     def _examine(self, seconds, box):
         mode = self._modes.status()["mode"] if self._modes is not None and self._modes.runs_stack else None
-        checks = ros_checks(self._observer.observe(seconds, mode), box)
+        checks = ros_checks(self._observer.observe(seconds, mode), box, self._simulated)
         checks += host.host_checks(host.read(self._maps_folder, self._host_root))
         return {"status": overall(checks), "mode": mode, "window": seconds,
                 "at": time.strftime("%Y-%m-%dT%H:%M:%S%z"), "checks": [c.as_dict() for c in checks]}

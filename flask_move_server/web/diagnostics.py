@@ -43,5 +43,5 @@ def _seconds(raw):
 def _box(raw):
     word = raw.strip().lower()
     if word not in YES + NO:
-        raise BadRequest("box must be 1 or 0, got {!r}.".format(raw[:20]))
+        raise BadRequest("box must be 1 or 0 (or true, false), got {!r}.".format(raw[:20]))
     return word in YES

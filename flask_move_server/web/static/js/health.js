@@ -69,7 +69,8 @@ function row(check) {
 export function initHealth() {
   $("health-check").onclick = () => examine(false);
   $("health-box").onclick = () => {
-    if (window.confirm("Put a box about 1 m straight ahead of the robot, nothing else that close, then OK.")) {
+    if (window.confirm("Put a box about 1 m straight ahead of the robot, with nothing else within about "
+                       + "1.5 m in any direction (behind too), then OK.")) {
       examine(true);
     }
   };
