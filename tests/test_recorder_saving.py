@@ -212,3 +212,28 @@ def test_a_ctrl_c_during_a_save_takes_effect_right_after_it(tmp_path, sigint_at_
     assert done == ["reported", "interrupted"]
     assert list(parse((tmp_path / "w.yaml").read_text())) == ["kitchen"]
     assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+
+
+def test_auto_names_without_a_terminal_records_until_sigterm(ros_node, unique_name, tmp_path):
+    """roslaunch starts record-waypoints with its input at end: with --auto-names that is no reason to quit."""
+    target = tmp_path / "waypoints.yaml"
+    topic = "/{}/clicked_point".format(unique_name)
+    with recorder_process("--waypoints", str(target), "--auto-names", "--clicked-topic", topic,
+                          "--map-frame", unique_name + "_map") as (proc, lines):
+        proc.stdin.close()  # end of input at once, as under roslaunch
+        _next_line(lines, lambda line: line.startswith("Recording waypoints in the file"), "the recorder to start")
+        pub = rospy.Publisher(topic, PointStamped, queue_size=10)
+        try:
+            wait_for(lambda: pub.get_num_connections() > 0, message="the recorder subscribing")
+            assert proc.poll() is None, "the recorder quit at the end of its input"
+            msg = PointStamped()
+            msg.header.frame_id = unique_name + "_map"
+            msg.point.x = 1.5
+            pub.publish(msg)
+            _next_line(lines, lambda line: line.startswith("Saved wp1"), "the click saved")
+            proc.send_signal(signal.SIGTERM)
+            _next_line(lines, lambda line: line.startswith("Bye"), "the recorder to stop on SIGTERM")
+            assert proc.wait(30) == 0
+        finally:
+            pub.unregister()
+    assert parse(target.read_text())["wp1"].x == 1.5

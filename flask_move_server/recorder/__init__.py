@@ -12,6 +12,7 @@ store.
 import argparse
 import contextlib
 import os
+import signal
 import sys
 import time
 
@@ -88,10 +89,13 @@ def _record(args, saver, stack):
     stack.callback(markers.close)
     session = Session(saver, ros, markers, say=_say, auto_names=args.auto_names, goal_topic=args.goal_topic)
     _introduce(session, ros, args)
+    previous = signal.signal(signal.SIGTERM, _interrupt)  # roslaunch and systemd stop with SIGTERM too
     try:
         prompt.run(session, sys.stdin.fileno())
     except KeyboardInterrupt:
         pass
+    finally:
+        signal.signal(signal.SIGTERM, previous)
     try:
         _say("Bye: {} waypoints in {}.".format(len(saver.all()), saver.where))
     except MoveServerError:
@@ -113,6 +117,10 @@ def _introduce(session, ros, args):
         time.sleep(0.1)
     if not ros.has_map_frame():
         _say(ros.why_no_pose())
+
+
+def _interrupt(signum, frame):
+    raise KeyboardInterrupt
 
 
 def _say(text):

@@ -17,22 +17,28 @@ from flask_move_server.errors import MoveServerError
 
 @contextlib.contextmanager
 def interrupts_deferred():
-    """Hold back Ctrl-C (SIGINT) until the block is done, then raise KeyboardInterrupt."""
+    """Hold back Ctrl-C (SIGINT) and SIGTERM until the block is done, then raise KeyboardInterrupt."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
     caught = []
-    previous = signal.signal(signal.SIGINT, lambda signum, frame: caught.append(signum))
+    signals = (signal.SIGINT, signal.SIGTERM)
+    previous = [signal.signal(signum, lambda signum, frame: caught.append(signum)) for signum in signals]
     try:
         yield
     finally:
-        signal.signal(signal.SIGINT, previous)
+        for signum, handler in zip(signals, previous):
+            signal.signal(signum, handler)
     if caught:
         raise KeyboardInterrupt
 
 
 def run(session, fd, refresh_period=2.0, poll=0.1):
-    """Feed ``session`` the lines read from ``fd`` and the queued clicks until it quits or input ends."""
+    """Feed ``session`` the lines read from ``fd`` and the queued clicks until it quits or input ends.
+
+    With ``auto_names`` no line is needed: the end of input (roslaunch starts nodes with none)
+    only stops reading it, and clicks are recorded until Ctrl-C or SIGTERM.
+    """
     pending = b""
     refresher = _Refresher(session, refresh_period)
     while session.running:
@@ -40,12 +46,18 @@ def run(session, fd, refresh_period=2.0, poll=0.1):
             more_clicks = session.handle_clicks(limit=1)
         with interrupts_deferred():
             refresher.maybe()
+        if fd is None:
+            time.sleep(0 if more_clicks else poll)
+            continue
         ready, _, _ = select.select([fd], [], [], 0 if more_clicks else poll)
         if not ready:
             continue
         data = os.read(fd, 4096)
-        if not data:  # end of input (Ctrl-D, or a closed pipe)
-            return
+        if not data:  # end of input (Ctrl-D, a closed pipe, none at all)
+            if not session.auto_names:
+                return
+            fd = None
+            continue
         pending += data
         while b"\n" in pending and session.running:
             line, pending = pending.split(b"\n", 1)
