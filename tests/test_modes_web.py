@@ -150,7 +150,7 @@ def test_a_goal_while_idle_says_to_start_navigation_not_roslaunch(robot_config, 
     robot.move_base_ready = False  # idle: no move_base runs
     client = create_app(robot_config, robot, store, modes=modes).test_client()
     r = client.post("/goto", json={"name": "kitchen"})
-    assert r.status_code == 503 and r.get_json()["error"] == "move_base_unavailable"
+    assert r.status_code == 409 and r.get_json()["error"] == "wrong_mode"  # the owner's choice, not an outage
     assert r.get_json()["message"].startswith("The robot is idle") and "robotctl map use" in r.get_json()["message"]
     assert "roslaunch" not in r.get_json()["message"]
 

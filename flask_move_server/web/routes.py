@@ -7,7 +7,7 @@ store, and shape the JSON answer. They know nothing of rospy.
 from flask import Blueprint, current_app, jsonify
 from werkzeug.routing import PathConverter
 
-from flask_move_server.errors import BadRequest, NavigationUnavailable
+from flask_move_server.errors import BadRequest, NavigationUnavailable, WrongMode
 from flask_move_server.geometry import Goal, Pose2D
 from flask_move_server.waypoints import YAW_LIMIT, check_coordinate, check_name, make_waypoint
 from flask_move_server.web.body import json_object, number, text
@@ -48,13 +48,17 @@ def goto():
 
 
 def _why_no_move_base():
-    """move_base does not answer: when this server runs the stack, what its mode means (None: nothing to add)."""
+    """move_base does not answer: when this server runs the stack, what its mode means (None: nothing to add).
+
+    Idle is a mode the owner chose (409 ``wrong_mode``); a stack starting, stopping or failed is
+    navigation that is really unavailable (503).
+    """
     modes = current_app.extensions["flask_move_server"]["modes"]
     if not modes.runs_stack:
         return None
     mode = modes.status()
-    if mode["mode"] == "idle":
-        return NavigationUnavailable(
+    if mode["mode"] == "idle":  # the owner's choice, not a failure: 409 like POST /pose
+        return WrongMode(
             "The robot is idle: no navigation stack runs, so nothing takes goals. Start navigation on a map "
             "first: POST /mode {\"mode\": \"navigation\", \"map\": NAME} (robotctl map use NAME; GET /maps "
             "lists the maps).")
