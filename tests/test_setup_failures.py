@@ -51,3 +51,27 @@ def test_parts_set_up_without_failure_say_connected(node, robot_config):
         assert robot.health()["ros"] == "connected" and robot.status()["ros"]["failed_parts"] == []
     finally:
         robot.close()
+
+
+class _NodeNotYetConnected:
+    """A node as it is in its first second: registering (``waiting``) with the master at ``master_uri``."""
+
+    name = "flask_move_server_tests_waiting"
+    state = "waiting"
+    connected = False
+
+    def __init__(self, uri):
+        self.master_uri = uri
+
+
+@pytest.mark.parametrize("answers,said", [(True, "still connecting to its ROS master"),
+                                          (False, "no master answers")])
+def test_a_goal_before_the_node_connected_says_whether_a_master_answers(ros_master, answers, said):
+    from types import SimpleNamespace
+
+    from flask_move_server.ros.navigator import Navigator
+    from tests.conftest import free_port
+
+    uri = ros_master if answers else "http://127.0.0.1:{}".format(free_port())  # --sim's master, or none
+    message = Navigator._why_not_connected(SimpleNamespace(_node=_NodeNotYetConnected(uri)))
+    assert said in message and uri in message

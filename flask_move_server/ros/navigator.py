@@ -24,10 +24,12 @@ from move_base_msgs.msg import MoveBaseAction, MoveBaseActionGoal, MoveBaseGoal
 
 from flask_move_server.errors import NavigationUnavailable, RosUnavailable
 from flask_move_server.goal_endings import failure_sentence, replaced_end, said_sentence
+from flask_move_server.ros import master
 from flask_move_server.ros.action_status import read_status_lightly
 from flask_move_server.ros.convert import pose_from_msg, pose_stamped, write_pose
 from flask_move_server.ros.direct import direct_publisher
 from flask_move_server.ros.goal_first import publish_goals_first
+from flask_move_server.ros.node import WAITING
 from flask_move_server.ros.readiness import ServerReadiness
 
 log = logging.getLogger(__name__)
@@ -255,10 +257,7 @@ class Navigator:
 
     def _check_reachable(self):
         if not self._node.connected:
-            raise RosUnavailable(
-                "ROS is not reachable: no master answers at {} ({}). Start roscore, "
-                "or set ROS_MASTER_URI.".format(self._node.master_uri, self._node.state)
-            )
+            raise RosUnavailable(self._why_not_connected())
         if self._client is None and self._goal_pub is None:
             raise RosUnavailable("The ROS node is still starting (or stopping); try again in a moment.")
         if self._client is not None and not self._readiness.ready(self._config.server_wait):
@@ -267,6 +266,15 @@ class Navigator:
                 "move_base does not answer on the action '{}': is the navigation stack "
                 "running (roslaunch flask_move_server navigation.launch)?".format(action)
             )
+
+    def _why_not_connected(self):
+        """The node has no master: still registering with one that answers (the first second, or --sim's
+        own master starting), or none answers at all."""
+        uri = self._node.master_uri
+        if self._node.state == WAITING and master.identity("/" + self._node.name, uri, timeout=0.3) is not None:
+            return "The server is still connecting to its ROS master at {}; try again in a moment.".format(uri)
+        return "ROS is not reachable: no master answers at {} ({}). Start roscore, or set ROS_MASTER_URI.".format(
+            uri, self._node.state)
 
     def _done(self, seq, status):
         state = _FROM_STATUS.get(status, ABORTED)
