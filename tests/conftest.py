@@ -238,6 +238,21 @@ def _thread_module(thread):
     return type(thread).__module__
 
 
+# What a server run in the checkout with the default config would write there (waypoints.file is
+# waypoints.yaml, relative): a test must write only into its temporary folders.
+CHECKOUT_LEFTOVERS = ("mode.json", "waypoints.yaml", "maps", os.path.join("config", "mode.json"),
+                      os.path.join("config", "waypoints.yaml"))
+
+
+@pytest.fixture(autouse=True)
+def nothing_written_into_the_checkout():
+    """Fail a test that leaves server state (mode.json, waypoints, maps) in the checkout itself."""
+    before = {name for name in CHECKOUT_LEFTOVERS if os.path.lexists(os.path.join(ROOT, name))}
+    yield
+    after = {name for name in CHECKOUT_LEFTOVERS if os.path.lexists(os.path.join(ROOT, name))}
+    assert after <= before, "the test wrote {} into the checkout {}".format(sorted(after - before), ROOT)
+
+
 @pytest.fixture(autouse=True)
 def no_thread_left_running():
     """Fail a test that leaves a thread of ours running: every part closes what it starts.

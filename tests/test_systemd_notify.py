@@ -42,9 +42,10 @@ def receive(sock, want, timeout=30.0):
     raise AssertionError("no {} within {}s; got {}".format(want, timeout, got))
 
 
-def test_server_notifies_ready_watchdog_and_stopping(notify_socket, ros_master):
+def test_server_notifies_ready_watchdog_and_stopping(notify_socket, ros_master, tmp_path):
     path, sock = notify_socket
     proc = run_cli("--host", "127.0.0.1", "--port", "0", "--no-mdns", "--motor-backend", "none",
+                   "--waypoints", str(tmp_path / "waypoints.yaml"),  # its mode.json beside it, not in the checkout
                    env={"NOTIFY_SOCKET": path, "WATCHDOG_USEC": "1000000"})
     try:
         before_ready = receive(sock, "READY=1")
