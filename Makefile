@@ -25,11 +25,23 @@ DEBIAN_PY_DEBS := python3-flask python3-waitress python3-yaml python3-requests p
 
 setup: $(VENV)/.installed
 
-$(VENV)/.installed: setup.py Makefile
-	./scripts/apt-ensure $(ROS_DEBS) $(DEPLOY_TEST_DEBS) $(BROWSER_TEST_DEBS)
-	$(SYSTEM_PYTHON) -m venv --system-site-packages $(VENV)
-	$(PY) -m pip install -q --disable-pip-version-check --upgrade --upgrade-strategy eager -e '.[test]'
-	touch $@
+# What the server needs to run (make demo, make run): ROS 1 from Debian and the server in .venv.
+# No test tools and no browser: those are make test's (below).
+$(VENV)/.server: setup.py Makefile
+	@echo "==> ROS 1 from Debian's packages (apt installs what is missing: a minute or two the first time)"
+	@./scripts/apt-ensure $(ROS_DEBS)
+	@echo "==> the server into $(VENV) (pip: Flask, waitress, zeroconf, ...)"
+	@$(SYSTEM_PYTHON) -m venv --system-site-packages $(VENV)
+	@$(PY) -m pip install -q --disable-pip-version-check -e .
+	@touch $@
+
+# Everything make test needs on top: systemd and rospack for the deployment tests, Debian's
+# chromium for the phone page's browser tests, and the test tools (pytest, ruff, Playwright, ...).
+$(VENV)/.installed: $(VENV)/.server
+	@echo "==> the test toolchain: systemd, rospack, chromium (apt); pytest, ruff, playwright, ... (pip)"
+	@./scripts/apt-ensure $(ROS_DEBS) $(DEPLOY_TEST_DEBS) $(BROWSER_TEST_DEBS)
+	@$(PY) -m pip install -q --disable-pip-version-check --upgrade --upgrade-strategy eager -e '.[test]'
+	@touch $@
 
 lint: setup
 	$(VENV)/bin/ruff check .
@@ -58,7 +70,7 @@ test-debian: $(DEBIAN_VENV)/.installed
 # The waypoints are copied once to build/run/, where the server also keeps mode.json and maps/.
 RUN_WAYPOINTS ?= build/run/waypoints.yaml
 
-run: setup
+run: $(VENV)/.server
 	@mkdir -p $(dir $(RUN_WAYPOINTS))
 	@test -f $(RUN_WAYPOINTS) || cp config/waypoints.example.yaml $(RUN_WAYPOINTS)
 	$(VENV)/bin/flask-move-server --host 127.0.0.1 --waypoints $(RUN_WAYPOINTS)
@@ -69,7 +81,7 @@ DEMO_PORT ?= 5000
 DEMO_URL := http://127.0.0.1:$(DEMO_PORT)
 DEMO_WAYPOINTS ?= build/demo/waypoints.yaml
 
-demo: setup
+demo: $(VENV)/.server
 	@mkdir -p $(dir $(DEMO_WAYPOINTS))
 	@test -f $(DEMO_WAYPOINTS) || cp config/waypoints.demo.yaml $(DEMO_WAYPOINTS)
 	@echo "Simulated robot on $(DEMO_URL) (Ctrl-C stops it). Open $(DEMO_URL)/ in a browser for the phone page."
@@ -80,6 +92,7 @@ demo: setup
 	@echo "  curl -d '{\"name\": \"office\", \"wait\": 120}' $(DEMO_URL)/goto"
 	@echo "  curl -X POST $(DEMO_URL)/stop"
 	@echo "  curl -d '{\"linear\": 0.2, \"angular\": 0.5}' $(DEMO_URL)/teleop"
+	@echo "  $(VENV)/bin/robotctl --url $(DEMO_URL) status"
 	$(VENV)/bin/flask-move-server --sim --port $(DEMO_PORT) --waypoints $(DEMO_WAYPOINTS) $(DEMO_ARGS)
 
 bench: setup
