@@ -218,12 +218,12 @@ class Navigator:
                 "'canceling' until it answers or a new goal replaces it.".format(time.monotonic() - self._cancel_sent))
 
     def server_ready(self):
-        """True when goals can be sent now (move_base answers, or topic mode)."""
+        """True when goals can be sent now (move_base answers, or topic mode); never waits."""
         if not self._node.connected:
             return False
         if self._client is None:
             return self._goal_pub is not None
-        return self._readiness.ready(0.001)
+        return self._readiness.ready_now()
 
     def close(self):
         """Release the action client's or the goal topic's connections. Idempotent."""

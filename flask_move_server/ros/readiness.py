@@ -30,6 +30,24 @@ class ServerReadiness:
         self._ready_on = evidence if ready and _same(evidence, self._evidence()) else None
         return ready
 
+    def ready_now(self):
+        """Whether the server answers at this instant, never waiting (``GET /health``, ``/status``).
+
+        The same test as actionlib's ``wait_for_server`` makes on each pass of its loop, made once:
+        that loop sleeps 10 ms before it looks at its timeout, so even ``ready(0.001)`` cost a
+        ``/health`` 11 ms whenever move_base was absent.
+        """
+        evidence = self._evidence()
+        server = evidence[0]
+        if server is None:
+            return False
+        if _same(evidence, self._ready_on):
+            return True
+        results, feedback = evidence[3], evidence[4]
+        return (any(c.callerid_pub == server for c in results) and any(c.callerid_pub == server for c in feedback)
+                and self._client.pub_goal.impl.has_connection(server)
+                and self._client.pub_cancel.impl.has_connection(server))
+
     def _evidence(self):
         client = self._client
         status = client.last_status_msg
