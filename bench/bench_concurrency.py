@@ -1,6 +1,6 @@
 """Concurrent clients against the server: does it scale with them, and does /stop stay quick?
 
-Run: ``.venv/bin/python bench/bench_concurrency.py [--seconds 5] [--clients 1,2,8]`` (starts its own
+Run: ``.venv/bin/python bench/bench_concurrency.py [--seconds 5] [--clients 1,2,8] [--compare DIR]`` (starts its own
 ROS master and ``flask-move-server --motor-backend none``, no move_base). Each client is a process
 of its own (no shared GIL with the others) holding one keep-alive connection and polling
 ``GET /status`` as fast as the server answers. Prints markdown tables for docs/performance.md:
@@ -8,6 +8,9 @@ of its own (no shared GIL with the others) holding one keep-alive connection and
 1. throughput and latency per number of clients, and the ratio of 8 clients to 1 (target ≥ 0.9);
 2. ``POST /stop`` latency while 8 clients poll (target p99 ≤ 10 ms);
 3. ``GET /health`` latency with move_base absent (target p50 ≤ 1 ms).
+
+``--compare DIR`` runs the same against the server in another checkout (``git worktree add DIR REV``),
+in the same run, so a change is measured against what it replaced.
 """
 
 import argparse
@@ -76,29 +79,20 @@ def pct(values, q):
     return values[min(len(values) - 1, int(q * len(values)))] * 1e3
 
 
-def main():
-    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("--seconds", type=float, default=5.0)
-    parser.add_argument("--clients", default="1,2,4,8")
-    args = parser.parse_args()
-    counts = [int(c) for c in args.clients.split(",")]
+def measure(label, env, cwd, args, counts):
+    """Every table for the server in ``cwd``'s checkout."""
     tmp = tempfile.mkdtemp(prefix="bench-concurrency-")
-    master_port = free_port()
-    env = dict(os.environ, ROS_MASTER_URI="http://127.0.0.1:{}".format(master_port), ROS_IP="127.0.0.1",
-               ROS_HOME=tmp, ROS_LOG_DIR=os.path.join(tmp, "log"))
-    master = start_master(master_port, env)
     waypoints = os.path.join(tmp, "waypoints.yaml")
     with open(waypoints, "w") as f:
         f.write("waypoints:\n  dock: [0.0, 0.0, 0.0]\n")
-    server = None
+    env = dict(env, PYTHONPATH=cwd, ROS_HOME=tmp, ROS_LOG_DIR=os.path.join(tmp, "log"))
+    server, host, port, _ = start_server(
+        [sys.executable, "-m", "flask_move_server", "--host", "127.0.0.1", "--port", "0", "--no-mdns",
+         "--motor-backend", "none", "--waypoints", waypoints], env, cwd=cwd)
     try:
-        server, host, port, _ = start_server(
-            [sys.executable, "-m", "flask_move_server", "--host", "127.0.0.1", "--port", "0", "--no-mdns",
-             "--motor-backend", "none", "--waypoints", waypoints], env)
         time.sleep(2.0)  # the node connects to the master
-        load = os.getloadavg()[0]
-        print("## GET /status, keep-alive clients (each its own process), {:g} s each; load {:.1f}\n".format(
-            args.seconds, load))
+        print("## {}: GET /status, keep-alive clients (each its own process), {:g} s each; load {:.1f}\n".format(
+            label, args.seconds, os.getloadavg()[0]))
         print("| clients | req/s | p50 ms | p99 ms |")
         print("|---:|---:|---:|---:|")
         rates = {}
@@ -119,11 +113,27 @@ def main():
         print("|---|---:|---:|---:|")
         print("| POST /stop while 8 clients poll /status | {:.2f} | {:.2f} | {:.2f} |".format(
             pct(stops, 0.5), pct(stops, 0.99), max(stops) * 1e3))
-        print("| GET /health, move_base absent | {:.2f} | {:.2f} | {:.2f} |".format(
+        print("| GET /health, move_base absent | {:.2f} | {:.2f} | {:.2f} |\n".format(
             pct(health, 0.5), pct(health, 0.99), max(health) * 1e3))
     finally:
-        if server is not None:
-            stop_process(server)
+        stop_process(server)
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--seconds", type=float, default=5.0)
+    parser.add_argument("--clients", default="1,2,4,8")
+    parser.add_argument("--compare", metavar="DIR", help="another checkout's server, measured in the same run")
+    args = parser.parse_args()
+    counts = [int(c) for c in args.clients.split(",")]
+    master_port = free_port()
+    env = dict(os.environ, ROS_MASTER_URI="http://127.0.0.1:{}".format(master_port), ROS_IP="127.0.0.1")
+    master = start_master(master_port, env)
+    try:
+        measure("this checkout", env, ROOT, args, counts)
+        if args.compare:
+            measure(os.path.basename(os.path.abspath(args.compare)), env, os.path.abspath(args.compare), args, counts)
+    finally:
         stop_process(master)
     return 0
 

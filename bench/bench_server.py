@@ -34,8 +34,8 @@ class MoveBase:
         self._server.start()
 
 
-def start_server(args, env):
-    proc = subprocess.Popen(args, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, env=env, text=True)
+def start_server(args, env, cwd=None):
+    proc = subprocess.Popen(args, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, env=env, text=True, cwd=cwd)
     started = time.perf_counter()
     for line in proc.stderr:
         if "serving the API on http://" in line or "bare server on http://" in line:

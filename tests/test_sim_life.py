@@ -111,6 +111,7 @@ def test_marking_relocalizing_and_going_on_the_new_map(sim):
 def test_back_to_idle_then_the_map_again(sim):
     _switch(sim, {"mode": "idle"})
     assert sim.get("/map").status_code == 404
-    assert sim.post("/goto", {"name": "kitchen"}).status_code == 503
+    r = sim.post("/goto", {"name": "kitchen"})
+    assert r.status_code == 409 and r.json()["error"] == "wrong_mode", r.text  # idle: the owner's choice
     _switch(sim, {"mode": "navigation", "map": "flat"})
     assert sim.get("/waypoints/kitchen").status_code == 200
