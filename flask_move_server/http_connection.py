@@ -1,7 +1,8 @@
 """One client connection of the HTTP server (waitress's channel and task), hardened.
 
 - remembers when its current request began, so the server can close one that has not delivered
-  a whole request within ``request_timeout`` or sat idle for ``channel_timeout``
+  a whole request within ``request_timeout``, sat idle for ``channel_timeout``, or left its
+  answers unread for ``channel_timeout``
   (:meth:`RobotChannel.overdue`, :meth:`RobotChannel.waiting_since`);
 - an event stream's unsent output is bounded (``STREAM_BACKLOG``): its writer waits instead, and
   a peer that takes nothing for ``channel_timeout`` is disconnected; the app can ask whether the
@@ -206,13 +207,17 @@ class RobotChannel(HTTPChannel):
         return super().received(data)
 
     def waiting_since(self):
-        """When this connection began to wait for something it has not finished sending; None if busy.
+        """Since when this connection has waited on its client; None while the server works for it.
 
-        Busy: a request is queued or in service, or its answer is still being sent.
+        Busy (None): a request queued or in service, or closing. Waiting: an answer the client does
+        not read (since the last write that made progress: waitress's ``last_activity``), a request
+        it has not finished sending (since it began), or nothing at all (since its last activity).
+        A client that pipelines requests and never reads their answers is waiting, so it can be
+        shed past ``connection_limit`` and cut by the timeouts like any idle or slow client.
         """
-        if self.requests or self.total_outbufs_len or self.will_close:
+        if self.requests or self.will_close:
             return None
-        if self.request is not None:
+        if self.request is not None and not self.total_outbufs_len:
             return self.request_began
         return self.last_activity
 
@@ -222,6 +227,8 @@ class RobotChannel(HTTPChannel):
         if since is None:
             return False
         adj = self.server.policy
+        if self.total_outbufs_len:  # an answer the client takes nothing of
+            return now - since > adj.channel_timeout
         if self.request is not None or self.request_began is None:  # partial request, or nothing yet
             return now - since > adj.request_timeout
         return now - since > adj.channel_timeout

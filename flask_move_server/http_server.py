@@ -27,6 +27,7 @@ log = logging.getLogger(__name__)
 
 QUEUE_LOGGER = "waitress.queue"
 MAINTENANCE_INTERVAL = 1  # seconds between sweeps for timed-out connections
+ACCEPT_GRACE = 2.0  # seconds a just-accepted connection is never the one closed to make room
 
 
 class RobotWSGIServer(TcpWSGIServer):
@@ -52,7 +53,9 @@ class RobotWSGIServer(TcpWSGIServer):
         """Over ``connection_limit``: close the connections that have waited longest for nothing.
 
         Those lingering after a refusal go first (their answer is sent), so a burst of refused
-        requests cannot fill the server. Closed as waitress closes, by the loop's next pass
+        requests cannot fill the server; then those waiting longest on their client (idle, slow,
+        or leaving their answers unread), never one accepted in the last ``ACCEPT_GRACE`` seconds
+        (it would be the newcomer the room is made for). Closed as waitress closes, by the loop's next pass
         (closing a socket while the loop gathers its poll() lists would hand poll() a
         closed descriptor): ``will_close``, or a lingering channel's ``stop_lingering()``.
         """
@@ -64,16 +67,36 @@ class RobotWSGIServer(TcpWSGIServer):
         lingering = [c for c in channels if c.lingering()][:excess]
         for channel in lingering:
             channel.stop_lingering()
-        waiting = sorted((c.waiting_since(), id(c), c) for c in channels if c.waiting_since() is not None)
-        for _, _, channel in waiting[:excess - len(lingering)]:
-            channel.will_close = True
+        newest = time.time() - ACCEPT_GRACE  # a connection this young has not had the time to ask
+        waiting = sorted((c.waiting_since(), id(c), c) for c in channels
+                         if c.waiting_since() is not None and c.creation_time < newest)
+        self.close_soon([channel for _, _, channel in waiting[:excess - len(lingering)]])
         self.policy.shed += min(excess, len(lingering) + len(waiting))
 
     def maintenance(self, now):
-        """Close connections past request_timeout (no whole request yet) or channel_timeout (idle)."""
-        for channel in list(self.active_channels.values()):
-            if channel.overdue(now):
-                channel.will_close = True
+        """Close connections past their timeouts; over the limit, make room again (once a second).
+
+        Room is also made here, not only when a connection is accepted: at the hard ceiling the
+        server accepts nothing, so connections past their grace, or whose client stopped reading
+        since, would otherwise hold every place until their timeouts.
+        """
+        self.close_soon([channel for channel in list(self.active_channels.values()) if channel.overdue(now)])
+        self.make_room()
+
+    def close_soon(self, channels):
+        """Close ``channels`` at the loop's next pass, as waitress closes (``will_close``).
+
+        One whose client reads nothing never becomes writable, so waitress would never get to
+        close it: those are closed from the loop's trigger, after its poll, never while the loop
+        gathers what to poll (a descriptor closed then would be handed to poll()).
+        """
+        stalled = []
+        for channel in channels:
+            channel.will_close = True
+            if channel.total_outbufs_len:
+                stalled.append(channel)
+        if stalled:
+            self.trigger.pull_trigger(lambda: [c.handle_close() for c in stalled if c.connected])
 
 
 class ConnectionPolicy:

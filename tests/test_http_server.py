@@ -183,6 +183,34 @@ def _length(answer):
     return int(head.split("content-length: ")[1].split("\r\n")[0])
 
 
+def test_clients_that_never_read_their_answers_cannot_lock_others_out(app, robot_config):
+    """Pipelined requests whose answers are never read (more than the sockets' buffers hold) used to
+    make a connection count as busy for ever: never shed past the limit, never timed out, so a
+    handful of them (no token needed) left every new client, the owner's /stop included, unanswered."""
+    robot_config.server.connection_limit = 4  # the server stops accepting at twice the limit
+    pipeline = b"GET /openapi.json HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n" * 200
+    with hardened(app, robot_config.server) as (server, url):
+        port = int(url.rsplit(":", 1)[1])
+        stalled = []
+        try:
+            for _ in range(10):
+                client = socket.create_connection(("127.0.0.1", port), timeout=10)
+                client.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)
+                client.setblocking(False)
+                with contextlib.suppress(BlockingIOError):
+                    client.sendall(pipeline)
+                stalled.append(client)
+            wait_for(lambda: sum(c.total_outbufs_len > 0 for c in list(server._map.values())
+                                 if hasattr(c, "total_outbufs_len")) >= 4, timeout=10,
+                     message="answers piling up unread")
+            answer = requests.post(url + "/stop", timeout=5)  # the owner's stop gets through
+            assert answer.status_code == 200
+            assert server.policy.shed > 0
+        finally:
+            for client in stalled:
+                client.close()
+
+
 def test_one_urgent_byte_closes_its_connection_instead_of_spinning_the_server(served, caplog):
     port = int(served.rsplit(":", 1)[1])
     with socket.create_connection(("127.0.0.1", port), timeout=5) as client:
