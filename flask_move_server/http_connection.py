@@ -7,7 +7,8 @@
 - an event stream's unsent output is bounded (``STREAM_BACKLOG``): its writer waits instead, and
   a peer that takes nothing for ``channel_timeout`` is disconnected; the app can ask whether the
   peer left (``flask_move_server.peer_gone`` in the WSGI environ);
-- waitress's own error answers (400, 413, 431, 501) come in the API's JSON error shape, and the
+- waitress's own error answers (400, 413, 431, 501) come in the API's JSON error shape (a body
+  announced too large gets its 413 at once, not ``100 Continue`` first), and the
   connection of a request refused midway closes only once the client is done sending, so the
   client reads the answer instead of a reset (:meth:`RobotChannel._linger`).
 """
@@ -205,6 +206,17 @@ class RobotChannel(HTTPChannel):
     def _close_now(self):
         self.linger_until = None
         super().handle_close()
+
+    def send_continue(self):
+        """No ``100 Continue`` for a request refused already (a Content-Length over the limit).
+
+        Waitress sent it anyway, inviting the client to send the whole oversized body before its
+        413; the refusal now comes at once.
+        """
+        if self.request is not None and self.request.error is not None:
+            self.request.expect_continue = False
+            return
+        super().send_continue()
 
     def received(self, data):
         if data and self.request is None:

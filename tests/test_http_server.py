@@ -74,6 +74,16 @@ def test_a_body_of_exactly_max_body_bytes_is_accepted_and_one_more_byte_is_a_jso
     assert str(limit) in over.json()["message"]
 
 
+def test_expect_100_continue_with_a_body_over_the_limit_gets_the_413_at_once(served, robot_config):
+    host, port = served.split("//")[1].split(":")
+    with socket.create_connection((host, int(port)), timeout=10) as sock:
+        sock.sendall(b"PUT /waypoints/porch HTTP/1.1\r\nHost: 127.0.0.1\r\nExpect: 100-continue\r\n"
+                     b"Content-Length: " + str(robot_config.server.max_body_bytes + 1).encode() + b"\r\n\r\n")
+        answer = _read_to_end(sock)
+    assert answer.startswith(b"HTTP/1.1 413") and b"100 Continue" not in answer
+    assert json.loads(answer.partition(b"\r\n\r\n")[2])["error"] == "body_too_large"
+
+
 def test_a_chunked_body_is_read_whole_and_one_past_the_limit_is_a_json_413(served, robot_config):
     limit = robot_config.server.max_body_bytes
 
