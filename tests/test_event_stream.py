@@ -13,6 +13,7 @@ import time
 import pytest
 import requests
 
+from flask_move_server.errors import TooManyStreams
 from flask_move_server.events import EventBus
 from flask_move_server.http_connection import STREAM_BACKLOG
 from flask_move_server.web import create_app
@@ -149,3 +150,19 @@ def test_a_page_knows_it_is_connected_at_once_even_when_nothing_has_happened_yet
         bus.publish("estop", {"latched": True, "source": "api", "since": None})
         assert reader.next() == ("estop", {"latched": True, "source": "api", "since": None})
         assert reader.retry == 2000
+
+
+def test_one_address_gets_at_most_half_the_stream_places():
+    """A machine on the Wi-Fi opening streams it never reads cannot take every place from the owner's phone."""
+    gate = StreamGate(max_streams=8)
+    taken = [gate.enter("192.168.1.66") for _ in range(4)]
+    with pytest.raises(TooManyStreams) as refused:
+        gate.enter("192.168.1.66")
+    assert "192.168.1.66" in str(refused.value) and "half of server.max_streams" in str(refused.value)
+    phone = gate.enter("192.168.1.20")  # the owner's phone still gets in
+    gate.leave(taken.pop())
+    gate.leave(gate.enter("192.168.1.66"))  # a place given back is the address's again
+    assert [gate.enter("127.0.0.1") for _ in range(4)] == [None] * 4  # this machine: not counted per address
+    with pytest.raises(TooManyStreams):
+        gate.enter("::1")  # ...but the total still holds
+    gate.leave(phone)

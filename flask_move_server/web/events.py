@@ -10,13 +10,15 @@ server can tell (``flask_move_server.peer_gone`` in the WSGI environ, see http_c
 a peer that closed the connection is noticed within ``poll`` seconds.
 
 Each open stream holds a worker thread for as long as it is open, so at most
-``server.max_streams`` are served at a time (one more answers 503 ``too_many_streams``),
+``server.max_streams`` are served at a time, at most half of them to one address (one more
+answers 503 ``too_many_streams``),
 and the HTTP server has that many threads more than ``server.threads``. A stream ends when
 the event bus closes (the server is stopping), so it never delays SIGTERM.
 Authorised like every route: the page reads it with ``fetch()`` and an ``Authorization``
 header (EventSource cannot send one, and a token never goes in a URL).
 """
 
+import ipaddress
 import json
 import threading
 import time
@@ -34,28 +36,50 @@ RETRY_MS = 2000  # the reconnection delay the stream suggests to SSE clients
 
 
 class StreamGate:
-    """How many streams may be open (``max_streams``), how many are, and their timing."""
+    """How many streams may be open (``max_streams``, at most half of them from one address), and their timing.
 
-    def __init__(self, max_streams, heartbeat=HEARTBEAT, poll=POLL):
+    The per-address share keeps one machine on the Wi-Fi that opens streams and never reads them
+    from taking every place (the owner's phone would get none); addresses on this machine (a
+    reverse proxy, the tests) are not counted per address.
+    """
+
+    def __init__(self, max_streams, heartbeat=HEARTBEAT, poll=POLL, per_peer=None):
         self.max_streams = max_streams
+        self.per_peer = per_peer if per_peer is not None else max(1, max_streams // 2)
         self.heartbeat = heartbeat
         self.poll = min(poll, heartbeat)
         self._lock = threading.Lock()
         self.open = 0
+        self._by_peer = {}
 
-    def enter(self):
-        """Count one more open stream; TooManyStreams when all are taken."""
+    def enter(self, peer=None):
+        """Count one more open stream from ``peer``; TooManyStreams when all, or the peer's share, are taken.
+
+        Returns the key to give back to :meth:`leave` (None when not counted per address).
+        """
+        key = None if peer is None or ipaddress.ip_address(peer).is_loopback else peer
         with self._lock:
             if self.open >= self.max_streams:
                 raise TooManyStreams(
                     "{} live views are open already, the most this robot serves (server.max_streams). "
                     "Close a page on another phone or tab, or wait for it to time out, then "
                     "reload.".format(self.max_streams))
+            if key is not None and self._by_peer.get(key, 0) >= self.per_peer:
+                raise TooManyStreams(
+                    "{} live views are open from {} already, the most one address may hold (half of "
+                    "server.max_streams). Close a page or tab there, then reload.".format(self.per_peer, key))
             self.open += 1
+            if key is not None:
+                self._by_peer[key] = self._by_peer.get(key, 0) + 1
+        return key
 
-    def leave(self):
+    def leave(self, key=None):
         with self._lock:
             self.open -= 1
+            if key is not None:
+                left = self._by_peer.pop(key) - 1
+                if left:
+                    self._by_peer[key] = left
 
 
 @events_api.record_once
@@ -68,8 +92,8 @@ def _set_up(state):
 def stream():
     shared = current_app.extensions["flask_move_server"]
     gate = shared["streams"]
-    gate.enter()
-    body = EventStream(shared["events"].subscribe(), gate, request.environ.get(PEER_GONE))
+    place = gate.enter(request.remote_addr)
+    body = EventStream(shared["events"].subscribe(), gate, request.environ.get(PEER_GONE), place)
     return Response(body, mimetype="text/event-stream",
                     headers={"Cache-Control": "no-store", "X-Accel-Buffering": "no"})
 
@@ -82,9 +106,10 @@ class EventStream:
     given back either way.
     """
 
-    def __init__(self, subscription, gate, peer_gone=None):
+    def __init__(self, subscription, gate, peer_gone=None, place=None):
         self._sub = subscription
         self._gate = gate
+        self._place = place
         self._peer_gone = peer_gone or (lambda: False)
         self._closed = False
 
@@ -118,7 +143,7 @@ class EventStream:
             return
         self._closed = True
         self._sub.close()
-        self._gate.leave()
+        self._gate.leave(self._place)
 
 
 def format_event(kind, data):
