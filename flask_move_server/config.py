@@ -50,6 +50,7 @@ class ServerConfig:
     static: bool = True
     allowed_hosts: List[str] = checked(rules.host_names, default_factory=list)
     connection_limit: int = checked(rules.positive, default=100)
+    connections_per_address: int = checked(rules.positive, default=32)
     request_timeout: float = checked(rules.positive, default=10.0)
     channel_timeout: float = checked(rules.positive, default=30.0)
     max_streams: int = checked(rules.positive, default=8)

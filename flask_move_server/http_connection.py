@@ -90,6 +90,12 @@ class RobotChannel(HTTPChannel):
     linger_until = None  # while set, the answer is sent and the client's remaining input is dropped
     linger_left = 0
 
+    def __init__(self, server, sock, addr, adj, map=None):
+        super().__init__(server, sock, addr, adj, map=map)
+        if server.over_address_share(self):  # closed at the loop's next pass, nothing read
+            self.will_close = True
+            server.policy.refused_addresses += 1
+
     def peer_gone(self):
         """True once the client closed or reset the connection (peeked at, nothing read)."""
         if not self.connected or self.will_close:

@@ -13,6 +13,7 @@ bounded streams, JSON errors); who serves each request is ``http_lanes`` (the
 stop lane, the stream lane, the queue summary).
 """
 
+import ipaddress
 import logging
 import resource
 import time
@@ -48,6 +49,19 @@ class RobotWSGIServer(TcpWSGIServer):
     def handle_accept(self):
         super().handle_accept()
         self.make_room()
+
+    def over_address_share(self, channel):
+        """True when ``channel``'s address already holds ``connections_per_address`` others.
+
+        One machine on the Wi-Fi opening hundreds of connections, each pipelining requests, made
+        the loop parse thousands of them before it reached the owner's ``/stop``; the share keeps
+        one address to a browser's worth and then some. This machine's addresses are not counted.
+        """
+        host = channel.addr[0] if isinstance(channel.addr, tuple) else None
+        if host is None or _loopback(host):
+            return False
+        same = sum(1 for c in self.active_channels.values() if c is not channel and c.addr and c.addr[0] == host)
+        return same >= self.policy.per_address
 
     def make_room(self):
         """Over ``connection_limit``: close the connections that have waited longest for nothing.
@@ -105,7 +119,9 @@ class ConnectionPolicy:
     def __init__(self, server_config):
         self.request_timeout = server_config.request_timeout
         self.channel_timeout = server_config.channel_timeout
+        self.per_address = server_config.connections_per_address
         self.shed = 0
+        self.refused_addresses = 0
 
 
 class HttpServer:
@@ -182,6 +198,13 @@ def waitress_settings(server_config):
         # such connection (a large connection_limit, or ROS's own sockets and files) killed the loop
         asyncore_use_poll=True,
     )
+
+
+def _loopback(host):
+    try:
+        return ipaddress.ip_address(host.split("%")[0]).is_loopback
+    except ValueError:
+        return False
 
 
 def _raise_fd_limit(wanted):

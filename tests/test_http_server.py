@@ -311,3 +311,25 @@ def test_queued_requests_log_one_summary_not_one_line_each(app, robot_config, re
         queue_log.removeHandler(records)
     assert 1 <= len(records.messages) <= 2, records.messages
     assert "waited for a free worker thread" in records.messages[0]
+
+
+def test_one_address_holds_at_most_its_share_of_connections():
+    """Hundreds of pipelining connections from one machine made the loop parse thousands of requests
+    before it reached the owner's /stop; an address past ``connections_per_address`` is refused."""
+    from types import SimpleNamespace
+
+    from flask_move_server.http_server import RobotWSGIServer
+
+    def channel(host):
+        return SimpleNamespace(addr=(host, 40000))
+
+    crowd = {i: channel("192.168.1.66") for i in range(3)}
+    server = SimpleNamespace(active_channels=dict(crowd, phone=channel("192.168.1.20")),
+                             policy=SimpleNamespace(per_address=3))
+    share = RobotWSGIServer.over_address_share
+    assert share(server, channel("192.168.1.66"))          # a fourth from the same machine
+    assert not share(server, crowd[0])                      # the ones it has are its share
+    assert not share(server, channel("192.168.1.20"))      # the owner's phone: its second
+    server.active_channels.update({i + 10: channel("127.0.0.1") for i in range(5)})
+    assert not share(server, channel("127.0.0.1"))          # this machine (a reverse proxy): not counted
+    assert not share(server, SimpleNamespace(addr="/run/robot.sock"))  # a unix socket: no address
