@@ -35,7 +35,7 @@ setup(
         "PyYAML>=5.3",
         "requests>=2.22",
         "zeroconf>=0.47",
-        "ifaddr>=0.1.7",  # zeroconf's own dependency; mdns.py polls the interfaces with it
+        "ifaddr>=0.1.7",  # zeroconf's own dependency; lan/mdns.py polls the interfaces with it
         "pyserial>=3.4",
     ],
     extras_require={
@@ -51,7 +51,7 @@ setup(
     entry_points={
         "console_scripts": [
             "flask-move-server = flask_move_server.cli:main",
-            "robotctl = flask_move_server.client:main",
+            "robotctl = flask_move_server.robotctl.cli:main",
             "flask-move-base = flask_move_server.drive.__main__:main",
             "record-waypoints = flask_move_server.recorder:main",
         ],

@@ -130,7 +130,7 @@ def our_server(n, tmp):
     from flask_move_server.drive import make_drive
     from flask_move_server.drive.backends.sim import SimBackend
     from flask_move_server.ros.node import RosNode
-    from flask_move_server.waypoint_store import WaypointStore
+    from flask_move_server.waypoints.store import WaypointStore
     from flask_move_server.web import create_app
 
     cfg = config.Config()

@@ -49,8 +49,8 @@ class Server:
 
     def start(self):
         from flask_move_server.events import EventBus
-        from flask_move_server.http_server import HttpServer
-        from flask_move_server.waypoint_store import WaypointStore
+        from flask_move_server.http.server import HttpServer
+        from flask_move_server.waypoints.store import WaypointStore
         from flask_move_server.web import create_app
 
         stack = self._stack
@@ -116,7 +116,7 @@ class Server:
         if self.config.serves_only_loopback():
             log.info("serving %s only: not advertising over mDNS", self.config.server.host)
             return
-        from flask_move_server.mdns import Advertiser
+        from flask_move_server.lan.mdns import Advertiser
 
         token_required = bool(self.config.resolved_token())
         advertiser = Advertiser(self.config.mdns, self.config.server.host, self.port, token_required)

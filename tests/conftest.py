@@ -282,7 +282,7 @@ def hardened(app, server_config, loop_timeout=None):
     ``loop_timeout``: how long waitress's loop may sleep when nothing wakes it (it wakes once a
     second by itself), for tests that must see a write sent when it is made, not when the loop wakes.
     """
-    from flask_move_server.http_server import HttpServer
+    from flask_move_server.http.server import HttpServer
 
     server = HttpServer(app, server_config)
     if loop_timeout is not None:

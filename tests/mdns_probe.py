@@ -3,14 +3,14 @@
 ``python -m tests.mdns_probe COMMAND ARGS...`` prints JSON on stdout:
 
 - ``a-query NAME SECONDS``: a raw one-shot mDNS A query built and parsed with
-  zeroconf's own DNSOutgoing/DNSIncoming (independent of dns_wire.py's codec);
+  zeroconf's own DNSOutgoing/DNSIncoming (independent of lan/dns_wire.py's codec);
   prints the addresses that answered.
 - ``browse TYPE``: a zeroconf ServiceBrowser; prints one line per event
   (``{"event": "added"|"updated"|"removed", "name", "port", "addresses"}``) until killed.
 - ``discover SECONDS``: ``discovery.discover()``.
 - ``get-local HOST PORT PATH``: ``discovery.resolve_local(HOST)``, then an HTTP GET
   (with ``Authorization: Bearer $ROBOT_TOKEN`` when set).
-- ``advertise INSTANCE HOSTNAME PORT``: an :class:`~flask_move_server.mdns.Advertiser`;
+- ``advertise INSTANCE HOSTNAME PORT``: an :class:`~flask_move_server.lan.mdns.Advertiser`;
   prints what it published, withdraws when stdin closes.
 """
 
@@ -81,7 +81,7 @@ def _off_loop(handler):
 
 
 def discover(seconds):
-    from flask_move_server import discovery
+    from flask_move_server.lan import discovery
 
     _emit([r._asdict() for r in discovery.discover(float(seconds))])
 
@@ -91,7 +91,7 @@ def get_local(host, port, path):
 
     import requests
 
-    from flask_move_server import discovery
+    from flask_move_server.lan import discovery
 
     address = discovery.resolve_local(host, timeout=3.0)
     result = {"address": address}
@@ -106,7 +106,7 @@ def advertise(instance, hostname, port):
     import logging
 
     from flask_move_server.config import MdnsConfig
-    from flask_move_server.mdns import Advertiser
+    from flask_move_server.lan.mdns import Advertiser
 
     logging.basicConfig(level=logging.INFO, stream=sys.stderr)
     settings = MdnsConfig(hostname=hostname, instance=instance, publish_hostname="always")

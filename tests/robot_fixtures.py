@@ -9,7 +9,7 @@ import threading
 import pytest
 
 from flask_move_server import cli, config
-from flask_move_server.waypoint_store import WaypointStore
+from flask_move_server.waypoints.store import WaypointStore
 from flask_move_server.web import create_app
 from tests.conftest import wait_for
 

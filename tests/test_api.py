@@ -147,7 +147,7 @@ def test_topic_interface_publishes_move_base_simple_goal(ros_node, robot_config,
     from geometry_msgs.msg import PoseStamped
 
     from flask_move_server import cli
-    from flask_move_server.waypoint_store import WaypointStore
+    from flask_move_server.waypoints.store import WaypointStore
     from flask_move_server.web import create_app
     from tests.robot_fixtures import no_drive
 

@@ -15,8 +15,9 @@ import pytest
 import rospy
 from geometry_msgs.msg import PoseWithCovarianceStamped
 
-from flask_move_server import client, client_text
-from flask_move_server.api_client import ExitStatus
+from flask_move_server.robotctl import cli as client
+from flask_move_server.robotctl import text as client_text
+from flask_move_server.robotctl.api import ExitStatus
 from tests.conftest import ROOT, default_sigint, serve, stop_process, wait_for
 from tests.standins.move_base import ABORT_X, HOLD_X, ScriptedMoveBase
 
@@ -46,7 +47,7 @@ def robot_server(ros_node, prefix, waypoints_file, token=None, move_base=True):
     from flask_move_server.ros.navigator import Navigator
     from flask_move_server.ros.pose import PoseTracker
     from flask_move_server.ros.teleop import Teleop
-    from flask_move_server.waypoint_store import WaypointStore
+    from flask_move_server.waypoints.store import WaypointStore
     from flask_move_server.web import create_app
 
     cfg = config_mod.Config()
@@ -341,7 +342,7 @@ def test_goto_wait_polls_rather_than_blocking(live):
 def drive_in_pty(url):
     """``robotctl drive`` as a process whose terminal is a pty we type into."""
     master, slave = pty.openpty()
-    proc = subprocess.Popen([sys.executable, "-m", "flask_move_server.client", "--url", url, "drive"],
+    proc = subprocess.Popen([sys.executable, "-m", "flask_move_server.robotctl.cli", "--url", url, "drive"],
                             stdin=slave, stdout=slave, stderr=slave, cwd=ROOT, start_new_session=True)
     os.close(slave)
     try:
@@ -400,7 +401,7 @@ def test_drive_needs_a_terminal(live, capsys):
 
 
 def test_ctrl_c_while_waiting_stops_the_robot(live):
-    proc = subprocess.Popen([sys.executable, "-m", "flask_move_server.client", "--url", live.url,
+    proc = subprocess.Popen([sys.executable, "-m", "flask_move_server.robotctl.cli", "--url", live.url,
                              "goto", "forever", "--wait"], cwd=ROOT, stderr=subprocess.PIPE, text=True,
                             preexec_fn=default_sigint)
     try:

@@ -24,7 +24,7 @@ def robotctl(network, *args):
     env = dict(os.environ)
     env.pop("ROBOT_URL", None)
     env.pop("ROBOT_TOKEN", None)
-    return network.run(netns.CLIENT, [sys.executable, "-m", "flask_move_server.client", *args], timeout=60,
+    return network.run(netns.CLIENT, [sys.executable, "-m", "flask_move_server.robotctl.cli", *args], timeout=60,
                    cwd=ROOT, capture_output=True, text=True, env=env)
 
 

@@ -2,10 +2,11 @@
 
 import pytest
 
-from flask_move_server import client, client_modes
-from flask_move_server.api_client import ExitStatus
 from flask_move_server.events import EventBus
 from flask_move_server.modes.manager import ModeManager
+from flask_move_server.robotctl import cli as client
+from flask_move_server.robotctl import modes as client_modes
+from flask_move_server.robotctl.api import ExitStatus
 from flask_move_server.web import create_app
 from tests.conftest import serve
 from tests.fake_robot import FakeRobot

@@ -211,7 +211,7 @@ def test_get_diagnostics_over_http(robot_config, robot, store, doctor):
 
 
 def test_robotctl_doctor_prints_each_line_and_exits_1_on_a_failure(robot_config, robot, store, doctor, capsys):
-    from flask_move_server import client
+    from flask_move_server.robotctl import cli as client
 
     app = create_app(robot_config, robot, store, doctor=doctor)
     with serve(app) as url:

@@ -13,7 +13,7 @@ from flask_move_server import cli
 from flask_move_server.config import DriveConfig, FramesConfig
 from flask_move_server.drive import make_drive
 from flask_move_server.drive.estop import EStop
-from flask_move_server.waypoint_store import WaypointStore
+from flask_move_server.waypoints.store import WaypointStore
 from flask_move_server.web import create_app
 from tests.conftest import wait_for
 from tests.standins.gpio import HIGH, LOW, RecordingGPIO

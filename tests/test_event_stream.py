@@ -1,4 +1,4 @@
-"""``GET /events`` over the product's HTTP server (http_server.py), real sockets, the fake robot.
+"""``GET /events`` over the product's HTTP server (http/server.py), real sockets, the fake robot.
 
 What a page reading the stream notices: the latest state at once on connect, each change as it
 comes, heartbeats on a quiet stream, a JSON 503 past ``server.max_streams``, a 401 without the
@@ -15,7 +15,7 @@ import requests
 
 from flask_move_server.errors import TooManyStreams
 from flask_move_server.events import EventBus
-from flask_move_server.http_connection import STREAM_BACKLOG
+from flask_move_server.http.connection import STREAM_BACKLOG
 from flask_move_server.web import create_app
 from flask_move_server.web.events import StreamGate
 from tests.conftest import hardened, wait_for

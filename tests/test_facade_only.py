@@ -11,7 +11,7 @@ import pytest
 
 from flask_move_server import config
 from flask_move_server.robot import Robot
-from flask_move_server.waypoint_store import WaypointStore
+from flask_move_server.waypoints.store import WaypointStore
 from flask_move_server.web import create_app
 
 FACADE = {name for name, _ in inspect.getmembers(Robot, inspect.isfunction) if not name.startswith("_")}

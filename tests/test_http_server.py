@@ -1,4 +1,4 @@
-"""The hardened waitress server (flask_move_server.http_server) with the real app, real sockets.
+"""The hardened waitress server (flask_move_server.http.server) with the real app, real sockets.
 
 Errors waitress answers before the app are JSON, the body limit is exact,
 silent and slow connections are cut, and waitress's per-request queue warnings
@@ -17,7 +17,7 @@ from concurrent.futures import ThreadPoolExecutor
 import pytest
 import requests
 
-from flask_move_server.http_connection import LINGER_SECONDS, UNREAD_LIMIT
+from flask_move_server.http.connection import LINGER_SECONDS, UNREAD_LIMIT
 from tests.conftest import hardened, wait_for
 from tests.standins.move_base import HOLD_X
 
@@ -318,7 +318,7 @@ def test_one_address_holds_at_most_its_share_of_connections():
     before it reached the owner's /stop; an address past ``connections_per_address`` is refused."""
     from types import SimpleNamespace
 
-    from flask_move_server.http_server import RobotWSGIServer
+    from flask_move_server.http.server import RobotWSGIServer
 
     def channel(host):
         return SimpleNamespace(addr=(host, 40000))

@@ -13,8 +13,8 @@ from flask_move_server.maps import mapfile, render
 from flask_move_server.maps.catalogue import MapCatalogue, check_map_name
 from flask_move_server.maps.mapfile import Grid
 from flask_move_server.sim import occupancy
-from flask_move_server.waypoint_store import WaypointStore
 from flask_move_server.waypoints import make_waypoint
+from flask_move_server.waypoints.store import WaypointStore
 
 # One cell of every kind map_saver tells apart, and what it folds each into.
 VALUES = [-1, 0, 10, 25, 26, 50, 64, 65, 100, 127, -128, -5]

@@ -22,8 +22,8 @@ from flask_move_server.maps import render
 from flask_move_server.maps.catalogue import MapCatalogue
 from flask_move_server.maps.service import MapService
 from flask_move_server.modes import state_file
-from flask_move_server.waypoint_store import WaypointStore
 from flask_move_server.waypoints import make_waypoint
+from flask_move_server.waypoints.store import WaypointStore
 from flask_move_server.web import create_app
 from tests.fake_maps import FakeMapSource, FakeModes
 from tests.fake_robot import FakeRobot

@@ -355,7 +355,7 @@ def test_an_edit_on_disk_of_the_active_maps_waypoints_is_served_and_told(client,
 
 
 def test_robotctl_map_save_list_rm(app, capsys, modes, catalogue):
-    from flask_move_server import client as robotctl
+    from flask_move_server.robotctl import cli as robotctl
     from tests.conftest import serve
 
     with serve(app) as url:

@@ -8,8 +8,10 @@ import sys
 import pytest
 from zeroconf import DNSAddress, DNSIncoming, DNSOutgoing, DNSService
 
-from flask_move_server import API_VERSION, __version__, config, discovery, dns_wire, mdns, mdns_records
+from flask_move_server import API_VERSION, __version__, config
 from flask_move_server.errors import ConfigError
+from flask_move_server.lan import discovery, dns_wire, mdns
+from flask_move_server.lan import records as mdns_records
 
 INTERFACES = [
     ("lo", "127.0.0.1"), ("lo", "::1"), ("eth0", "192.168.1.20"), ("eth0", "fe80::1%2"),

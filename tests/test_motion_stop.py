@@ -15,7 +15,7 @@ import pytest
 from flask_move_server import cli
 from flask_move_server.config import DriveConfig, FramesConfig
 from flask_move_server.drive import make_drive
-from flask_move_server.waypoint_store import WaypointStore
+from flask_move_server.waypoints.store import WaypointStore
 from flask_move_server.web import create_app
 from tests.conftest import ROOT, ServerProcess, free_port, start_master, stop_process, wait_for
 from tests.robot_fixtures import Recorder, no_drive

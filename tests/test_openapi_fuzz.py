@@ -1,7 +1,7 @@
 """A property-based fuzz run of the whole API, from its own ``/openapi.json``, against a real server.
 
 schemathesis turns the description into requests, valid ones (positive) and ones that break it on
-purpose (negative). Each goes over HTTP to the product's own server (http_server.py, which answers
+purpose (negative). Each goes over HTTP to the product's own server (http/server.py, which answers
 in JSON even what it refuses before the app) serving the real robot (rospy, actionlib, a scripted
 move_base, no motors: backend ``none``) of this test only, with its own ROS names and waypoints
 file, so nothing it does reaches another test. Whatever comes, the server never answers 5xx, every
@@ -28,7 +28,7 @@ LAST = ("/estop/release", "/estop")  # the e-stop last: once latched, goals and 
 
 @pytest.fixture
 def fuzzed_server(robot_config, ready_robot, store):
-    """The server the product runs (http_server.py) on a free port, for the real robot of this test."""
+    """The server the product runs (http/server.py) on a free port, for the real robot of this test."""
     from flask_move_server.web import create_app
 
     robot_config.server.port = 0

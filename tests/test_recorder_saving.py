@@ -13,10 +13,10 @@ import rospy
 import yaml
 from geometry_msgs.msg import PointStamped
 
-from flask_move_server.api_client import ExitStatus
 from flask_move_server.geometry import Pose2D
 from flask_move_server.recorder.savers import FileSaver, ServerSaver, choose_saver
-from flask_move_server.waypoints_format import parse
+from flask_move_server.robotctl.api import ExitStatus
+from flask_move_server.waypoints.yaml_format import parse
 from tests.conftest import ROOT, default_sigint, free_port, stop_process, wait_for
 from tests.test_client import robot_server
 from tests.test_recorder import Rig

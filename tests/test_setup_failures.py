@@ -10,7 +10,7 @@ import requests
 
 from flask_move_server import cli
 from flask_move_server.ros.node import RosNode
-from flask_move_server.waypoint_store import WaypointStore
+from flask_move_server.waypoints.store import WaypointStore
 from flask_move_server.web import create_app
 from tests.conftest import serve, wait_for
 from tests.robot_fixtures import no_drive

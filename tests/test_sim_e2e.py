@@ -190,7 +190,7 @@ def test_the_doctor_passes_the_simulated_robot_and_its_box_test(sim):
 
 
 def test_robotctl_doctor_on_the_simulated_robot(sim, capsys):
-    from flask_move_server import client
+    from flask_move_server.robotctl import cli as client
 
     assert client.main(["--url", sim.url, "doctor", "--seconds", "1"]) == 0
     out = capsys.readouterr().out

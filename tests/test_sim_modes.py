@@ -24,7 +24,7 @@ from flask_move_server.maps import mapfile
 from flask_move_server.ros.convert import write_pose
 from flask_move_server.sim import occupancy
 from flask_move_server.sim.runner import Simulation
-from flask_move_server.waypoint_store import WaypointStore
+from flask_move_server.waypoints.store import WaypointStore
 from flask_move_server.web import create_app
 from tests.conftest import ROOT, wait_for
 from tests.robot_fixtures import Recorder, make_config

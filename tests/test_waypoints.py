@@ -11,11 +11,11 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from flask_move_server import waypoint_store
 from flask_move_server import waypoints as wpmod
 from flask_move_server.errors import BadWaypoint, UnknownWaypoint, WaypointFileError
-from flask_move_server.waypoint_store import WaypointStore
 from flask_move_server.waypoints import Waypoint, make_waypoint
+from flask_move_server.waypoints import store as waypoint_store
+from flask_move_server.waypoints.store import WaypointStore
 
 SEED = textwrap.dedent("""\
     waypoints:
@@ -190,7 +190,7 @@ def test_save_failure_leaves_store_unchanged_on_full_disk(seed_file, monkeypatch
 
 WRITER = textwrap.dedent("""\
     import sys
-    from flask_move_server.waypoint_store import WaypointStore
+    from flask_move_server.waypoints.store import WaypointStore
     from flask_move_server.waypoints import make_waypoint
     path, prefix, count = sys.argv[1], sys.argv[2], int(sys.argv[3])
     store = WaypointStore(path)

@@ -17,9 +17,9 @@ import time
 import pytest
 
 from flask_move_server.errors import WaypointFileError, WaypointsLocked
-from flask_move_server.waypoint_store import WaypointStore
 from flask_move_server.waypoints import make_waypoint
-from flask_move_server.waypoints_format import parse
+from flask_move_server.waypoints.store import WaypointStore
+from flask_move_server.waypoints.yaml_format import parse
 from tests.test_waypoints import SEED, SEED_WRITTEN, WRITER
 
 SEED_NAMES = ["kitchen", "office", "dock"]

@@ -3,7 +3,7 @@
 A map is ``NAME.yaml`` + its image (``NAME.pgm`` as map_saver writes it, so maps
 made elsewhere can be dropped in) and, beside them, its waypoints
 ``NAME.waypoints.yaml`` in the waypoints file format (kept by
-:class:`~flask_move_server.waypoint_store.WaypointStore`). A map exists when its
+:class:`~flask_move_server.waypoints.store.WaypointStore`). A map exists when its
 YAML does: :func:`mapfile.save` renames the YAML into place last.
 
 Names follow the waypoint naming rule, and since a name becomes a file name,
@@ -21,12 +21,12 @@ from dataclasses import dataclass
 
 import yaml
 
-from flask_move_server import waypoints_file
 from flask_move_server.errors import BadMapName, BadWaypoint, ConfigError, MapExists, MapFileError, MapInUse, UnknownMap
 from flask_move_server.maps import mapfile
 from flask_move_server.sim import occupancy
 from flask_move_server.waypoints import NAME_RULE, check_name, suggest
-from flask_move_server.waypoints_format import entries_of
+from flask_move_server.waypoints import locked_file as waypoints_file
+from flask_move_server.waypoints.yaml_format import entries_of
 
 WAYPOINTS_SUFFIX = ".waypoints.yaml"
 MAP_NAME_RULE = NAME_RULE + ", not starting with '.' and not ending in '.waypoints'"

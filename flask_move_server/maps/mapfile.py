@@ -28,7 +28,7 @@ import yaml
 
 from flask_move_server.errors import ConfigError, MapExists, MapFileError
 from flask_move_server.sim import occupancy
-from flask_move_server.waypoints_file import fsync_dir, new_file_mode
+from flask_move_server.waypoints.locked_file import fsync_dir, new_file_mode
 
 FREE_PIXEL, OCCUPIED_PIXEL, UNKNOWN_PIXEL = 254, 0, 205
 MAP_SAVER_FREE, MAP_SAVER_OCCUPIED = 25, 65  # map_saver's --free / --occ defaults

@@ -21,7 +21,6 @@ import os
 import threading
 import uuid
 
-from flask_move_server import waypoints_file
 from flask_move_server.errors import (
     MapExists,
     MapFileError,
@@ -32,6 +31,7 @@ from flask_move_server.errors import (
 )
 from flask_move_server.maps import render
 from flask_move_server.maps.catalogue import check_map_name
+from flask_move_server.waypoints import locked_file as waypoints_file
 
 log = logging.getLogger(__name__)
 

@@ -8,10 +8,11 @@ stack the robot has moved since, so nothing is set and the message says to check
 read with the waypoints file's own loader. Pure: no rospy, no Flask.
 """
 
-from flask_move_server import waypoints_file, waypoints_format
 from flask_move_server.errors import UnknownWaypoint, WaypointFileError
 from flask_move_server.geometry import Pose2D
 from flask_move_server.waypoints import check_name, suggest
+from flask_move_server.waypoints import locked_file as waypoints_file
+from flask_move_server.waypoints import yaml_format as waypoints_format
 
 DOCK = "dock"
 

@@ -9,9 +9,9 @@ reason is returned for the log. Pure: no rospy, no Flask.
 import json
 import os
 
-from flask_move_server import waypoints_file
 from flask_move_server.errors import WaypointFileError
 from flask_move_server.modes.targets import MODES
+from flask_move_server.waypoints import locked_file as waypoints_file
 
 
 def save(path, mode, map_name):

@@ -16,8 +16,8 @@ import signal
 import sys
 import time
 
-from flask_move_server.api_client import ExitStatus
 from flask_move_server.errors import ClientError, MoveServerError, WaypointFileError
+from flask_move_server.robotctl.api import ExitStatus
 
 NODE_NAME = "record_waypoints"
 

@@ -3,14 +3,14 @@
 Both savers offer the same small interface (``all``, ``put``, ``delete``,
 ``rename``) so the session does not care which one it has. The server is the
 one writer when it answers; otherwise the file is written through the same
-:class:`~flask_move_server.waypoint_store.WaypointStore` the server uses (fcntl lock
+:class:`~flask_move_server.waypoints.store.WaypointStore` the server uses (fcntl lock
 + atomic save), so neither loses the other's edits.
 """
 
-from flask_move_server.api_client import ExitStatus, RobotClient, waypoint_path
 from flask_move_server.errors import BadWaypoint, ClientError
-from flask_move_server.waypoint_store import WaypointStore
+from flask_move_server.robotctl.api import ExitStatus, RobotClient, waypoint_path
 from flask_move_server.waypoints import make_waypoint
+from flask_move_server.waypoints.store import WaypointStore
 
 
 class FileSaver:

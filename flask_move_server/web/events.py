@@ -6,7 +6,7 @@ reconnecting one catches up: events carry state, never deltas), then each change
 event bus tells it. A slow reader never queues: its subscription keeps the newest event of
 each kind only. A comment line every ``heartbeat`` seconds keeps proxies from closing an
 idle stream and makes a write to a vanished peer fail, freeing its thread; where the HTTP
-server can tell (``flask_move_server.peer_gone`` in the WSGI environ, see http_connection.py),
+server can tell (``flask_move_server.peer_gone`` in the WSGI environ, see http/connection.py),
 a peer that closed the connection is noticed within ``poll`` seconds.
 
 Each open stream holds a worker thread for as long as it is open, so at most

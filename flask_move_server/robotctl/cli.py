@@ -2,7 +2,7 @@
 
 ``main(argv) -> exit status`` so tests and scripts call it directly. Every
 failure is one readable line on stderr and an exit status of its kind
-(:class:`~flask_move_server.api_client.ExitStatus`); tracebacks only with
+(:class:`~flask_move_server.robotctl.api.ExitStatus`); tracebacks only with
 ``--debug``.
 """
 
@@ -13,11 +13,14 @@ import sys
 import time
 import traceback
 
-from flask_move_server import __version__, client_doctor, client_maps, client_modes
-from flask_move_server.api_client import DEFAULT_TIMEOUT, DEFAULT_URL, ExitStatus, RobotClient, dumps, waypoint_path
-from flask_move_server.client_text import LiveLine, describe_status, progress, waypoint_table, xy_yaw
+from flask_move_server import __version__
 from flask_move_server.errors import ClientError
 from flask_move_server.goal_endings import failure_sentence, replaced_sentence
+from flask_move_server.robotctl import doctor as client_doctor
+from flask_move_server.robotctl import maps as client_maps
+from flask_move_server.robotctl import modes as client_modes
+from flask_move_server.robotctl.api import DEFAULT_TIMEOUT, DEFAULT_URL, ExitStatus, RobotClient, dumps, waypoint_path
+from flask_move_server.robotctl.text import LiveLine, describe_status, progress, waypoint_table, xy_yaw
 
 POLL_PERIOD = 0.5  # s between GET /status while `goto --wait` follows a goal
 
@@ -102,7 +105,7 @@ def cmd_teleop(client, args):
 
 def cmd_drive(client, args):
     """Keyboard teleop in this terminal."""
-    from flask_move_server.keyboard import KeyboardDriver
+    from flask_move_server.robotctl.keyboard import KeyboardDriver
 
     return KeyboardDriver(client, args.linear, args.angular).run(sys.stdin, sys.stdout)
 
@@ -156,7 +159,7 @@ def _add_waypoint(client, args):
 
 def cmd_discover(client, args):
     """List the robots advertising themselves over mDNS on this network."""
-    from flask_move_server import discovery
+    from flask_move_server.lan import discovery
 
     robots = discovery.discover(timeout=args.wait)
     if not robots:

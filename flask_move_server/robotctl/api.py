@@ -141,7 +141,7 @@ class RobotClient:
         if self._resolved or not host.endswith(".local"):
             return False
         self._resolved = True
-        from flask_move_server import discovery
+        from flask_move_server.lan import discovery
 
         address = discovery.resolve_local(host, timeout=min(3.0, self.timeout))
         if not address:

@@ -4,14 +4,15 @@
 instance name, TXT ``path``, ``api``, ``token``, ``version``) and :func:`reachable_addresses`
 the host name's A/AAAA addresses from the interfaces a bound server is reachable on;
 :func:`conflict_questions` and :func:`conflicts` ask and judge whether another device already
-answers for the host or instance name. :mod:`flask_move_server.mdns` puts them on the air.
+answers for the host or instance name. :mod:`flask_move_server.lan.mdns` puts them on the air.
 """
 
 import collections
 import ipaddress
 
-from flask_move_server import API_VERSION, __version__, dns_wire
-from flask_move_server.discovery import OWN_SERVICE_TYPE
+from flask_move_server import API_VERSION, __version__
+from flask_move_server.lan import dns_wire
+from flask_move_server.lan.discovery import OWN_SERVICE_TYPE
 
 HTTP_SERVICE_TYPE = "_http._tcp.local."
 SERVICE_TYPES = (OWN_SERVICE_TYPE, HTTP_SERVICE_TYPE)

@@ -1,6 +1,6 @@
 """Find robots on the LAN, and resolve ``NAME.local`` where the system cannot.
 
-The client side of :mod:`flask_move_server.mdns`. API (used by ``robotctl``):
+The client side of :mod:`flask_move_server.lan.mdns`. API (used by ``robotctl``):
 
 ``discover(timeout=3.0) -> list of FoundRobot``
     Browse ``_flask-move._tcp.local.`` for ``timeout`` seconds and return every
@@ -24,7 +24,7 @@ The client side of :mod:`flask_move_server.mdns`. API (used by ``robotctl``):
 The queries are one-shot ("legacy unicast", RFC 6762 section 6.7): sent from an
 ephemeral port to 224.0.0.251:5353 on every IPv4 interface, answered straight
 back by any responder (python-zeroconf, avahi, Bonjour). The packet codec is
-:mod:`flask_move_server.dns_wire` (pure); this module holds the sockets and the
+:mod:`flask_move_server.lan.dns_wire` (pure); this module holds the sockets and the
 browsing.
 """
 
@@ -34,7 +34,7 @@ import select
 import socket
 import time
 
-from flask_move_server.dns_wire import TYPE_A, TYPE_AAAA, addresses_of, build_query, local_name, parse_records
+from flask_move_server.lan.dns_wire import TYPE_A, TYPE_AAAA, addresses_of, build_query, local_name, parse_records
 
 OWN_SERVICE_TYPE = "_flask-move._tcp.local."
 MDNS_GROUP = "224.0.0.251"

@@ -8,8 +8,8 @@ connection policy: always accept; over ``connection_limit``, close the
 connections that have waited longest without a request in progress (idle, or a
 slow-loris still sending its headers); close a connection that has not
 delivered a whole request within ``request_timeout`` and a keep-alive one idle
-for ``channel_timeout``. One connection is ``http_connection`` (its timeouts,
-bounded streams, JSON errors); who serves each request is ``http_lanes`` (the
+for ``channel_timeout``. One connection is ``http.connection`` (its timeouts,
+bounded streams, JSON errors); who serves each request is ``http.lanes`` (the
 stop lane, the stream lane, the queue summary).
 """
 
@@ -21,8 +21,8 @@ import time
 from waitress.adjustments import Adjustments
 from waitress.server import TcpWSGIServer
 
-from flask_move_server.http_connection import RobotChannel
-from flask_move_server.http_lanes import QueueDepthSummary, StopLaneDispatcher
+from flask_move_server.http.connection import RobotChannel
+from flask_move_server.http.lanes import QueueDepthSummary, StopLaneDispatcher
 
 log = logging.getLogger(__name__)
 

@@ -7,8 +7,8 @@ as ``.bak``), an ``fcntl`` lock serialises writers across processes (the server 
 before the next read or write instead of being overwritten. A file that would silently lose
 the last good waypoints (empty, cut short, no ``waypoints:``) is a problem to report, not a
 deletion: only ``waypoints: {}`` clears them. The file plumbing lives in
-:mod:`flask_move_server.waypoints_file`, the format in
-:mod:`flask_move_server.waypoints_format`. Pure: no rospy, no Flask.
+:mod:`flask_move_server.waypoints.locked_file`, the format in
+:mod:`flask_move_server.waypoints.yaml_format`. Pure: no rospy, no Flask.
 """
 
 import contextlib
@@ -17,10 +17,10 @@ import os
 import shlex
 import threading
 
-from flask_move_server import waypoints_file
 from flask_move_server.errors import BadWaypoint, UnknownWaypoint, WaypointFileError
 from flask_move_server.waypoints import Waypoint, check_name, suggest
-from flask_move_server.waypoints_format import dump, entries_of, parse, waypoints_of
+from flask_move_server.waypoints import locked_file as waypoints_file
+from flask_move_server.waypoints.yaml_format import dump, entries_of, parse, waypoints_of
 
 log = logging.getLogger(__name__)
 

@@ -3,8 +3,8 @@
 Pure and tiny on purpose: builds a query packet, reads the records of a response (following
 compression pointers, refusing pointer loops), picks the A/AAAA addresses of a name. It needs
 no zeroconf internals, which change between zeroconf 0.47 and the newest release; a malformed
-packet yields no records, never an exception. Used by :mod:`flask_move_server.discovery` to ask
-and by :mod:`flask_move_server.mdns` for its conflict checks.
+packet yields no records, never an exception. Used by :mod:`flask_move_server.lan.discovery` to ask
+and by :mod:`flask_move_server.lan.mdns` for its conflict checks.
 """
 
 import ipaddress

@@ -1,7 +1,7 @@
 """What ``robotctl`` prints: the status summary, the waypoint table, the live progress line.
 
 Pure text from the JSON the server answered, kept apart from the commands in
-:mod:`flask_move_server.client` so the words and layout can change without touching how
+:mod:`flask_move_server.robotctl.cli` so the words and layout can change without touching how
 requests are made (and be tested without a robot).
 """
 

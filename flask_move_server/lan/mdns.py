@@ -1,6 +1,6 @@
 """Advertise the robot on the LAN over mDNS (python-zeroconf).
 
-What goes on the wire (built by the pure :mod:`flask_move_server.mdns_records`):
+What goes on the wire (built by the pure :mod:`flask_move_server.lan.records`):
 
 - the API as ``_http._tcp.local.`` (generic browsers and phone apps see it) and
   as ``_flask-move._tcp.local.`` (what ``robotctl discover`` looks for), both
@@ -31,9 +31,9 @@ import os
 import socket
 import threading
 
-from flask_move_server import discovery
-from flask_move_server.discovery import OWN_SERVICE_TYPE, interface_addresses
-from flask_move_server.mdns_records import (
+from flask_move_server.lan import discovery
+from flask_move_server.lan.discovery import OWN_SERVICE_TYPE, interface_addresses
+from flask_move_server.lan.records import (
     WILDCARD_ANY,
     WILDCARD_V4,
     conflict_questions,

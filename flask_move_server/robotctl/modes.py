@@ -9,9 +9,9 @@ goal. ``--no-wait`` returns at once; ``--timeout S`` gives up waiting (exit 12; 
 import sys
 import time
 
-from flask_move_server.api_client import ExitStatus
-from flask_move_server.client_text import LiveLine
 from flask_move_server.errors import ClientError
+from flask_move_server.robotctl.api import ExitStatus
+from flask_move_server.robotctl.text import LiveLine
 
 POLL_PERIOD = 0.5  # s between GET /mode while a switch is followed
 

@@ -6,7 +6,7 @@ how long the robot listens). Exit 0 when nothing fails (warnings included), 1 wh
 
 import sys
 
-from flask_move_server.api_client import ExitStatus, dumps
+from flask_move_server.robotctl.api import ExitStatus, dumps
 
 MARKS = {"pass": "PASS", "warn": "WARN", "fail": "FAIL", "skip": "skip"}
 

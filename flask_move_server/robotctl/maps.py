@@ -9,9 +9,9 @@ import contextlib
 import sys
 from urllib.parse import quote
 
-from flask_move_server import client_modes
-from flask_move_server.api_client import ExitStatus
 from flask_move_server.errors import ClientError
+from flask_move_server.robotctl import modes as client_modes
+from flask_move_server.robotctl.api import ExitStatus
 
 SAVE_TIMEOUT = 60.0  # s: the server waits up to maps.save_timeout (10 s) for a map, then writes it
 

@@ -2,8 +2,8 @@
 
 A waypoint is a named pose in the map frame (x, y in metres, yaw in radians). Names and
 coordinates are validated here once, for the HTTP API, the file and the recorder alike;
-:mod:`~flask_move_server.waypoints_format` reads and writes the YAML file,
-:mod:`~flask_move_server.waypoint_store` keeps it. Pure: no rospy, no Flask, no YAML.
+:mod:`~flask_move_server.waypoints.yaml_format` reads and writes the YAML file,
+:mod:`~flask_move_server.waypoints.store` keeps it. Pure: no rospy, no Flask, no YAML.
 """
 
 import difflib

@@ -16,8 +16,8 @@ import termios
 import time
 import tty
 
-from flask_move_server.api_client import ExitStatus
 from flask_move_server.errors import ClientError
+from flask_move_server.robotctl.api import ExitStatus
 
 # key -> (forward, turn) as fractions of the speeds; left turn is positive (REP-103).
 MOTION = {
