@@ -90,3 +90,75 @@ class HostileClients:
             if entry[0] is not None:
                 entry[0].close()
                 entry[0] = None
+
+
+class PipelineFlood:
+    """``count`` connections that each send ``depth`` pipelined requests without a token, read the
+    answers (cheap 401s) and send the next batch, for as long as the flood runs. One thread."""
+
+    REQUEST = b"GET /status HTTP/1.1\r\nHost: robot\r\n\r\n"
+
+    def __init__(self, host, port, count=300, depth=50, max_seconds=60):
+        self.address = (host, port)
+        self.count = count
+        self.depth = depth
+        self.batch = self.REQUEST * depth
+        self.max_seconds = max_seconds
+        self.answers = 0
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, name="pipeline-flood", daemon=True)
+
+    def __enter__(self):
+        self._thread.start()
+        return self
+
+    def __exit__(self, *exc):
+        self._stop.set()
+        self._thread.join(10)
+
+    def _open(self):
+        try:
+            sock = socket.create_connection(self.address, timeout=2)
+            sock.sendall(self.batch)
+            sock.setblocking(False)
+            return sock
+        except OSError:
+            return None
+
+    def _run(self):
+        owed = {}  # socket -> answers still to come for its batch
+        for _ in range(self.count):
+            self._replace(None, owed)
+        deadline = time.monotonic() + self.max_seconds
+        try:
+            while not self._stop.is_set() and time.monotonic() < deadline and owed:
+                for sock in select.select(list(owed), [], [], 0.1)[0]:
+                    self._read(sock, owed)
+        finally:
+            for sock in owed:
+                sock.close()
+
+    def _read(self, sock, owed):
+        try:
+            data = sock.recv(65536)
+        except OSError:
+            data = b""
+        if not data:
+            return self._replace(sock, owed)
+        answers = data.count(b"HTTP/1.1 ")
+        self.answers += answers
+        owed[sock] -= answers
+        if owed[sock] <= 0:  # the whole batch answered: the next one
+            try:
+                sock.sendall(self.batch)
+                owed[sock] = self.depth
+            except OSError:
+                self._replace(sock, owed)
+
+    def _replace(self, sock, owed):
+        if sock is not None:
+            owed.pop(sock, None)
+            sock.close()
+        fresh = self._open()
+        if fresh is not None:
+            owed[fresh] = self.depth

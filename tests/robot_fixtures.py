@@ -19,6 +19,7 @@ SEED = "waypoints:\n  kitchen: [1.23, 4.56, 0.79]\n  office: [5.67, 2.34, -1.57]
 def make_config(name, tmp_path):
     cfg = config.Config()
     cfg.server.host = "127.0.0.1"
+    cfg.server.port = 0  # a free port: never a demo's 5000
     cfg.navigation.action = name + "/move_base"
     cfg.navigation.simple_goal_topic = name + "/move_base_simple/goal"
     cfg.navigation.amcl_pose_topic = name + "/amcl_pose"

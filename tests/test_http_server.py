@@ -9,6 +9,7 @@ import contextlib
 import json
 import logging
 import os
+import re
 import resource
 import socket
 import time
@@ -333,3 +334,46 @@ def test_one_address_holds_at_most_its_share_of_connections():
     server.active_channels.update({i + 10: channel("127.0.0.1") for i in range(5)})
     assert not share(server, channel("127.0.0.1"))          # this machine (a reverse proxy): not counted
     assert not share(server, SimpleNamespace(addr="/run/robot.sock"))  # a unix socket: no address
+
+
+def test_pipelined_requests_are_each_answered_in_order(served):
+    """What a client pipelines after the request in service is parsed once that one is answered:
+    every request still gets its own answer, in order, a body split across packets included."""
+    host, port = served.split("//")[1].split(":")
+    body = b'{"x": 1.5, "y": -0.5, "yaw": 0.0}'
+    put = (b"PUT /waypoints/porch HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Type: application/json\r\n"
+           b"Content-Length: " + str(len(body)).encode() + b"\r\n\r\n" + body)
+    health = b"GET /health HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n"
+    pipeline = health * 60 + put + b"GET /waypoints/porch HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n"
+    with socket.create_connection((host, int(port)), timeout=10) as sock:
+        for i in range(0, len(pipeline), 997):  # packets that end mid-request
+            sock.sendall(pipeline[i:i + 997])
+            time.sleep(0.001)
+        sock.sendall(b"GET /health HTTP/1.1\r\nHost: 127.0.0.1\r\nConnection: close\r\n\r\n")
+        answer = b""
+        while True:
+            chunk = sock.recv(65536)
+            if not chunk:
+                break
+            answer += chunk
+    statuses = [int(code) for code in re.findall(rb"HTTP/1\.1 (\d{3}) ", answer)]
+    assert statuses == [200] * 60 + [201, 200, 200]
+    assert answer.count(b'"x":1.5') == 2  # the waypoint stored, and read back by the GET after it
+
+
+def test_connections_that_keep_pipelining_cannot_lock_the_owner_out(app, robot_config):
+    """Connections pipelining requests (cheap 401s), reading each batch's answers and sending the next,
+    are never idle, so they were never closed to make room: past twice ``connection_limit`` the
+    server accepted nothing more and the owner's /stop was never answered. The address holding
+    the most connections now gives up its oldest ones that have had answers."""
+    from tests.hostile import PipelineFlood
+
+    robot_config.server.connection_limit = 4  # the server stops accepting at twice the limit
+    robot_config.server.token = "owner-secret"
+    with hardened(app, robot_config.server) as (server, url):
+        port = int(url.rsplit(":", 1)[1])
+        with PipelineFlood("127.0.0.1", port, count=16, depth=50, max_seconds=60) as flood:
+            wait_for(lambda: flood.answers > 500, timeout=20, message="the flood under way")
+            answer = requests.post(url + "/stop", headers={"Authorization": "Bearer owner-secret"}, timeout=10)
+            assert answer.status_code == 200
+            assert server.policy.shed > 0

@@ -89,6 +89,8 @@ class RobotChannel(HTTPChannel):
     refused = False  # a JSON error answer was the last: the request may not have been read whole
     linger_until = None  # while set, the answer is sent and the client's remaining input is dropped
     linger_left = 0
+    requests_parsed = 0
+    unparsed = b""  # what a client pipelined after the request waiting to be served (see _parse)
 
     def __init__(self, server, sock, addr, adj, map=None):
         super().__init__(server, sock, addr, adj, map=map)
@@ -152,6 +154,8 @@ class RobotChannel(HTTPChannel):
     def readable(self):
         if self.linger_until is not None:
             return True
+        if self.unparsed and HTTPChannel.readable(self):
+            self._parse_next()
         return HTTPChannel.readable(self)
 
     def writable(self):
@@ -227,7 +231,51 @@ class RobotChannel(HTTPChannel):
     def received(self, data):
         if data and self.request is None:
             self.request_began = time.time()
-        return super().received(data)
+        if self.unparsed:
+            data, self.unparsed = self.unparsed + data, b""
+        return self._parse(data)
+
+    def _parse_next(self):
+        """The previous request is answered: parse the next one its client pipelined."""
+        data, self.unparsed = self.unparsed, b""
+        self.request_began = time.time()
+        self._parse(data)
+
+    def _parse(self, data):
+        """Waitress's ``received``, stopping once a whole request waits to be served.
+
+        Waitress parsed every request a client had pipelined as soon as it arrived (~220 in one
+        read of 8 KB); a few hundred connections doing so made each pass of the loop take 0.3 s,
+        and a new connection (the owner's ``/stop``) waited two passes to be read. What follows
+        the waiting request stays unparsed in ``unparsed`` until it is answered.
+        """
+        if not data:
+            return False
+        with self.requests_lock:
+            if self.will_close or self.close_when_flushed:
+                return False
+            while data:
+                if self.requests and self.request is None:
+                    self.unparsed = data
+                    break
+                if self.request is None:
+                    self.request = self.parser_class(self.adj)
+                n = self.request.received(data)
+                if (self.request.expect_continue and self.request.headers_finished and not self.requests
+                        and not self.sent_continue):
+                    self.send_continue()
+                if self.request.completed:
+                    self.sent_continue = False
+                    if not self.request.empty:
+                        self.requests.append(self.request)
+                        self.requests_parsed += 1
+                        if len(self.requests) == 1:
+                            self.server.add_task(self)
+                    self.request = None
+                if n >= len(data):
+                    break
+                data = data[n:]
+        return True
 
     def waiting_since(self):
         """Since when this connection has waited on its client; None while the server works for it.

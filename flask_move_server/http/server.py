@@ -6,13 +6,15 @@ in ``text/plain``, refuses a body of exactly the limit, and logs one warning
 per queued request. This module builds the server from ``ServerConfig`` with a
 connection policy: always accept; over ``connection_limit``, close the
 connections that have waited longest without a request in progress (idle, or a
-slow-loris still sending its headers); close a connection that has not
+slow-loris still sending its headers), then busy ones from the address holding
+the most (a pipelining flood; never a connection's first request); close a connection that has not
 delivered a whole request within ``request_timeout`` and a keep-alive one idle
 for ``channel_timeout``. One connection is ``http.connection`` (its timeouts,
 bounded streams, JSON errors); who serves each request is ``http.lanes`` (the
 stop lane, the stream lane, the queue summary).
 """
 
+import collections
 import ipaddress
 import logging
 import resource
@@ -28,7 +30,8 @@ log = logging.getLogger(__name__)
 
 QUEUE_LOGGER = "waitress.queue"
 MAINTENANCE_INTERVAL = 1  # seconds between sweeps for timed-out connections
-ACCEPT_GRACE = 2.0  # seconds a just-accepted connection is never the one closed to make room
+ACCEPT_BATCH = 64  # connections accepted in one pass of the loop, at most
+ACCEPT_GRACE = 0.5  # seconds a just-accepted connection is never the one closed to make room
 
 
 class RobotWSGIServer(TcpWSGIServer):
@@ -43,12 +46,28 @@ class RobotWSGIServer(TcpWSGIServer):
         if now >= self.next_channel_cleanup:
             self.next_channel_cleanup = now + self.adj.cleanup_interval
             self.maintenance(now)
-        # Keep accepting past the limit (room is made in handle_accept), up to a hard ceiling.
-        return self.accepting and len(self.active_channels) < 2 * self.adj.connection_limit
+        # Keep accepting past the limit (room is made in handle_accept), up to a hard ceiling;
+        # at the ceiling, room is made on every pass, not only once a second.
+        if len(self.active_channels) < 2 * self.adj.connection_limit:
+            return self.accepting
+        self.make_room()
+        return False
 
     def handle_accept(self):
-        super().handle_accept()
-        self.make_room()
+        """Accept what waits, up to ``ACCEPT_BATCH`` connections a pass (waitress: one), making room.
+
+        One a pass left the owner's connection behind every reconnect of a flood in the listen
+        backlog, one loop pass each: seconds before its ``/stop`` was even read.
+        """
+        ceiling = 2 * self.adj.connection_limit
+        for _ in range(ACCEPT_BATCH):
+            before = len(self.active_channels)
+            super().handle_accept()
+            if len(self.active_channels) == before:
+                return  # nothing waits (or the client left before it was accepted)
+            self.make_room()
+            if len(self.active_channels) >= ceiling:
+                return
 
     def over_address_share(self, channel):
         """True when ``channel``'s address already holds ``connections_per_address`` others.
@@ -57,7 +76,7 @@ class RobotWSGIServer(TcpWSGIServer):
         the loop parse thousands of them before it reached the owner's ``/stop``; the share keeps
         one address to a browser's worth and then some. This machine's addresses are not counted.
         """
-        host = channel.addr[0] if isinstance(channel.addr, tuple) else None
+        host = _host(channel)
         if host is None or _loopback(host):
             return False
         same = sum(1 for c in self.active_channels.values() if c is not channel and c.addr and c.addr[0] == host)
@@ -82,10 +101,30 @@ class RobotWSGIServer(TcpWSGIServer):
         for channel in lingering:
             channel.stop_lingering()
         newest = time.time() - ACCEPT_GRACE  # a connection this young has not had the time to ask
-        waiting = sorted((c.waiting_since(), id(c), c) for c in channels
-                         if c.waiting_since() is not None and c.creation_time < newest)
-        self.close_soon([channel for _, _, channel in waiting[:excess - len(lingering)]])
-        self.policy.shed += min(excess, len(lingering) + len(waiting))
+        open_ = [c for c in channels if not c.will_close and not c.lingering()]
+        waiting = sorted((c.waiting_since(), id(c), c) for c in open_
+                         if c.creation_time < newest and c.waiting_since() is not None)
+        victims = [channel for _, _, channel in waiting[:excess - len(lingering)]]
+        victims += self.busiest(open_, excess - len(lingering) - len(victims))
+        self.close_soon(victims)
+        self.policy.shed += len(lingering) + len(victims)
+
+    @staticmethod
+    def busiest(channels, count):
+        """Up to ``count`` of ``channels`` with a request in service that had an answer before,
+        from the addresses holding most.
+
+        Connections that keep pipelining are never idle, so without this, a few hundred of them held
+        every place and the owner's ``/stop`` was never accepted. A connection's first request is
+        never cut (it may be the owner's); the address with the most connections gives first, its
+        oldest first: the owner's phone holds a few, a flood many.
+        """
+        if count <= 0:
+            return []
+        busy = [c for c in channels if c.waiting_since() is None and c.requests_parsed > 1]
+        held = collections.Counter(_host(c) for c in busy)
+        busy.sort(key=lambda c: (-held[_host(c)], c.creation_time))
+        return busy[:count]
 
     def maintenance(self, now):
         """Close connections past their timeouts; over the limit, make room again (once a second).
@@ -198,6 +237,10 @@ def waitress_settings(server_config):
         # such connection (a large connection_limit, or ROS's own sockets and files) killed the loop
         asyncore_use_poll=True,
     )
+
+
+def _host(channel):
+    return channel.addr[0] if isinstance(channel.addr, tuple) else None
 
 
 def _loopback(host):
