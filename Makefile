@@ -88,12 +88,12 @@ demo: $(VENV)/.server
 	@echo "In another terminal, try:"
 	@echo "  curl $(DEMO_URL)/waypoints"
 	@echo "  curl -d '{\"name\": \"kitchen\"}' $(DEMO_URL)/goto"
-	@echo "  watch -n 0.5 curl -s $(DEMO_URL)/status"
+	@echo "  curl -N $(DEMO_URL)/events"
 	@echo "  curl -d '{\"name\": \"office\", \"wait\": 120}' $(DEMO_URL)/goto"
 	@echo "  curl -X POST $(DEMO_URL)/stop"
 	@echo "  curl -d '{\"linear\": 0.2, \"angular\": 0.5}' $(DEMO_URL)/teleop"
 	@echo "  $(VENV)/bin/robotctl --url $(DEMO_URL) status"
-	$(VENV)/bin/flask-move-server --sim --port $(DEMO_PORT) --waypoints $(DEMO_WAYPOINTS) $(DEMO_ARGS)
+	@$(VENV)/bin/flask-move-server --sim --port $(DEMO_PORT) --waypoints $(DEMO_WAYPOINTS) $(DEMO_ARGS)
 
 bench: setup
 	$(PY) -m bench
