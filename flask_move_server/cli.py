@@ -163,6 +163,10 @@ class Server:
         modes = ModeManager(cfg, backend, self.events, relocalize=initial_pose.publish,
                             goals_ready=lambda: self.robot.health()["move_base"] == "ready")
         stack.callback(modes.close)
+        if backend is not None:
+            from flask_move_server.modes.goal_gate import GoalGate
+
+            self.robot.goal_gate = GoalGate(modes, self.robot.navigator)
         return modes
 
     def _stack_backend(self):

@@ -27,11 +27,15 @@ class Robot:
         teleop.on_expire(drive.stop)
         self.estop.when_engaged(lambda source: self.stop())
         self.shutting_down = False
+        self.goal_gate = None  # modes/goal_gate.py, when this server runs the navigation stack
 
     def goto(self, goal):
         """Send the robot to ``goal``; returns the goal's sequence number."""
         self._refuse_motion("goals are")
+        ticket = self.goal_gate.admit() if self.goal_gate is not None else None
         seq = self.navigator.goto(goal)
+        if self.goal_gate is not None:
+            self.goal_gate.confirm(ticket, seq)
         self.teleop_control.end_command()
         self._unless_latched_meanwhile()
         return seq

@@ -22,6 +22,7 @@ class FakeRobot:
     """
 
     move_base_ready = True  # False: goals answer 503 move_base_unavailable, as with no move_base
+    goal_gate = None  # a modes/goal_gate.GoalGate admits goals first, as on the real facade
 
     def __init__(self, pose=None):
         self.calls = []
@@ -32,6 +33,8 @@ class FakeRobot:
 
     def goto(self, goal):
         self.calls.append(("goto", goal))
+        if self.goal_gate is not None:
+            self.goal_gate.admit()
         if not self.move_base_ready:
             raise NavigationUnavailable("move_base does not answer on the action '/move_base'.")
         self.estop.refuse_motion("goals are")
@@ -107,6 +110,11 @@ class _Navigation:
         self.goal, self.state = goal, "active"
         self.seq += 1
         return self.seq
+
+    def abandon(self, why, reason, seq=None):
+        """Give up the goal under way, as the navigator does when its stack goes away."""
+        if self.state == "active" and seq in (None, self.seq):
+            self.state = "aborted"
 
     def cancel(self):
         """True when a goal was under way (now canceled)."""

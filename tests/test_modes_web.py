@@ -8,6 +8,7 @@ backends' tests'.
 import pytest
 
 from flask_move_server.events import EventBus
+from flask_move_server.modes.goal_gate import GoalGate
 from flask_move_server.modes.manager import ModeManager
 from flask_move_server.web import create_app
 from tests.fake_robot import FakeRobot
@@ -148,6 +149,7 @@ def test_a_server_without_a_stack_says_so_and_refuses_switches(robot_config, sto
 def test_a_goal_while_idle_says_to_start_navigation_not_roslaunch(robot_config, store, modes):
     robot = FakeRobot()
     robot.move_base_ready = False  # idle: no move_base runs
+    robot.goal_gate = GoalGate(modes, robot._navigation)
     client = create_app(robot_config, robot, store, modes=modes).test_client()
     r = client.post("/goto", json={"name": "kitchen"})
     assert r.status_code == 409 and r.get_json()["error"] == "wrong_mode"  # the owner's choice, not an outage

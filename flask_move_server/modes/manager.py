@@ -61,6 +61,7 @@ class ModeManager:
         # Until restore(): idle with nothing started; without a backend, the outside stack's navigation.
         self._target = Target("idle") if backend else Target("navigation")
         self._status = self._body(self._target, "running", IDLE if backend else OUTSIDE)
+        self._leaving_running = []
 
     # reading ---------------------------------------------------------------
 
@@ -68,6 +69,19 @@ class ModeManager:
         """The ``GET /mode`` body: mode, map, state, since, message."""
         with self._changed:
             return dict(self._status)
+
+    def status_and_generation(self):
+        """The ``GET /mode`` body and the switch it belongs to (a number that grows with each switch)."""
+        with self._changed:
+            return dict(self._status), self._gen
+
+    def takes_goals(self, mode):
+        """Does ``mode``'s stack run move_base? The backend says (``serves_goals``); if it cannot, assume so."""
+        return self._serves_goals(mode)
+
+    def when_leaving_running(self, callback):
+        """Call ``callback(status)`` (under the manager's lock: be quick) each time the mode stops running."""
+        self._leaving_running.append(callback)
 
     @property
     def runs_stack(self):
@@ -207,7 +221,11 @@ class ModeManager:
 
     def _set(self, target, state, message):
         """Under the lock: the new status, published as a ``mode`` event."""
+        was_running = self._status["state"] == "running"
         self._status = self._body(target, state, message)
+        if was_running and state != "running":
+            for callback in self._leaving_running:
+                callback(dict(self._status))
         self._changed.notify_all()
         if self._events is not None:
             self._events.publish("mode", dict(self._status))

@@ -55,6 +55,7 @@ class Navigator:
     """Sends the robot to goals and tracks the current one."""
 
     cancel_patience = 5.0  # s without move_base's word on a cancel before /status asks whether it runs
+    ack_patience = 5.0  # s without move_base's word on a new goal before it is given up (aborted)
 
     def __init__(self, config, frames, node, pose_tracker):
         self._config = config
@@ -78,6 +79,9 @@ class Navigator:
         self._direct = []  # action mode: the goal and cancel publishers actionlib's share
         self._spare_message = None  # the next goal's MoveBaseGoal, built ahead
         self._released = False
+        self._unacknowledged = None  # (seq, sent at) of a goal move_base has not answered yet
+        self._ack_watch = None
+        self._closed = False
         node.when_ready(self._setup)
         node.when_lost(self._master_lost)
 
@@ -111,9 +115,11 @@ class Navigator:
                 self._cond.notify_all()
             if self._client is not None:
                 _settle_last_goal(self._client)
+                self._expect_acknowledgement(seq)
                 self._client.send_goal(
                     self._goal_message(goal.pose),
                     done_cb=lambda status, result: self._done(seq, status),
+                    active_cb=lambda: self._acknowledged(seq),
                     feedback_cb=lambda feedback: self._feedback(seq, feedback),
                 )
                 self._spare_message = MoveBaseGoal()  # the next goal's, built once this one is on its way
@@ -121,6 +127,15 @@ class Navigator:
                 self._goal_pub.publish(pose_stamped(goal.pose, self._frame, rospy.Time.now()))
         log.info("goal %d: %s %s", seq, goal.target or "pose", goal.pose.as_dict())
         return seq
+
+    def _expect_acknowledgement(self, seq):
+        with self._cond:
+            self._unacknowledged = (seq, time.monotonic())
+            if self._ack_watch is None:
+                self._ack_watch = threading.Thread(target=self._watch_acknowledgements, name="goal-ack-watch",
+                                                   daemon=True)
+                self._ack_watch.start()
+            self._cond.notify_all()
 
     def cancel(self):
         """Cancel the goal under way, if any; True when one was (not when its cancel is already sent).
@@ -227,6 +242,11 @@ class Navigator:
 
     def close(self):
         """Release the action client's or the goal topic's connections. Idempotent."""
+        with self._cond:
+            self._closed = True
+            self._cond.notify_all()
+        if self._ack_watch is not None:
+            self._ack_watch.join(2.0)
         client, self._client = self._client, None
         topics = [self._goal_pub, self._cancel_pub] + self._direct
         self._direct = []
@@ -277,6 +297,7 @@ class Navigator:
             uri, self._node.state)
 
     def _done(self, seq, status):
+        self._acknowledged(seq)
         state = _FROM_STATUS.get(status, ABORTED)
         said = self._said(state)
         self._finish(seq, state, said)
@@ -305,24 +326,60 @@ class Navigator:
 
     def _master_lost(self):
         """No master: move_base's word may never come, so a goal under way ends ``aborted`` now."""
+        self.abandon("The ROS master stopped answering, so the goal was given up (and a cancel sent to "
+                     "move_base); send it again once /health says \"ros\": \"connected\".",
+                     "the ROS master stopped answering")
+
+    def abandon(self, why, reason, seq=None):
+        """Give up the goal under way (goal ``seq`` only, when given): ``aborted`` with the sentence
+        ``why``, its cancel sent; True when one was. For a goal whose move_base may never answer
+        again: the master is gone, the stack is being switched or stopped, no acknowledgement."""
         with self._cond:
-            if self._state not in UNDER_WAY:
-                return
-            seq, self._state = self._seq, ABORTED
-            self._message = ("The ROS master stopped answering, so the goal was given up (and a cancel sent "
-                             "to move_base); send it again once /health says \"ros\": \"connected\".")
+            if self._state not in UNDER_WAY or (seq is not None and seq != self._seq):
+                return False
+            seq, self._state, self._message = self._seq, ABORTED, why
             self._cond.notify_all()
-        log.error("goal %d: aborted, the ROS master stopped answering", seq)
+        log.error("goal %d: aborted, %s", seq, reason)
         try:
             self._send_cancel()  # over the open connection: move_base must not resume it later
         except Exception as exc:
             log.warning("goal %d: could not send its cancel: %s", seq, exc)
+        return True
+
+    def _acknowledged(self, seq):
+        with self._cond:
+            if seq == self._seq:
+                self._unacknowledged = None
+
+    def _watch_acknowledgements(self):
+        """Abort a goal move_base has not acknowledged within ``ack_patience`` (action mode).
+
+        move_base answers a goal at once (active, or rejected); one sent as its stack was going away
+        had no answer ever and stayed ``active`` for good: a waiting client waited its whole timeout.
+        """
+        while not self._closed:
+            with self._cond:
+                while self._unacknowledged is None and not self._closed:
+                    self._cond.wait()
+                pending = self._unacknowledged
+                if pending is None:
+                    return
+                seq, sent = pending
+                left = sent + self.ack_patience - time.monotonic()
+                if left > 0:
+                    self._cond.wait(left)
+                    continue
+                self._unacknowledged = None
+            self.abandon("move_base did not acknowledge the goal within {:.0f} s, so it was given up: is the "
+                         "navigation stack running? (GET /mode, GET /health)".format(self.ack_patience),
+                         "move_base did not acknowledge it within {:.0f} s".format(self.ack_patience), seq)
 
     def _feedback(self, seq, feedback):
         pose = pose_from_msg(feedback.base_position.pose)
         with self._cond:
             if seq == self._seq:
                 self._feedback_pose = pose
+                self._unacknowledged = None
 
     def _distance_remaining(self, goal, state, reading=None):
         if goal is None:

@@ -7,7 +7,7 @@ store, and shape the JSON answer. They know nothing of rospy.
 from flask import Blueprint, current_app, jsonify
 from werkzeug.routing import PathConverter
 
-from flask_move_server.errors import BadRequest, NavigationUnavailable, WrongMode
+from flask_move_server.errors import BadRequest
 from flask_move_server.geometry import Goal, Pose2D
 from flask_move_server.waypoints import YAW_LIMIT, check_coordinate, check_name, make_waypoint
 from flask_move_server.web.body import json_object, number, text
@@ -35,40 +35,13 @@ def goto():
     data = json_object(GOTO_FIELDS)
     goal = _goal_from(data)
     wait = number(data, "wait", 0, _config().navigation.max_wait) if "wait" in data else None
-    try:
-        seq = _robot().goto(goal)
-    except NavigationUnavailable as exc:
-        raise _why_no_move_base() or exc
+    seq = _robot().goto(goal)
     body = {"status": "ok", "target": goal.target, "goal": goal.pose.as_dict(), "goal_id": seq}
     if wait is None:
         return jsonify(body), 202
     reached = _robot().wait(seq, wait)
     body["navigation"] = _robot().navigation_status()
     return jsonify(body), 200 if reached else 202
-
-
-def _why_no_move_base():
-    """move_base does not answer: when this server runs the stack, what its mode means (None: nothing to add).
-
-    Idle is a mode the owner chose (409 ``wrong_mode``); a stack starting, stopping or failed is
-    navigation that is really unavailable (503).
-    """
-    modes = current_app.extensions["flask_move_server"]["modes"]
-    if not modes.runs_stack:
-        return None
-    mode = modes.status()
-    if mode["mode"] == "idle":  # the owner's choice, not a failure: 409 like POST /pose
-        return WrongMode(
-            "The robot is idle: no navigation stack runs, so nothing takes goals. Start navigation on a map "
-            "first: POST /mode {\"mode\": \"navigation\", \"map\": NAME} (robotctl map use NAME; GET /maps "
-            "lists the maps).")
-    if mode["state"] in ("starting", "stopping"):
-        return NavigationUnavailable("The {} stack is {}: send the goal again once GET /mode says running."
-                                     .format(mode["mode"], mode["state"]))
-    if mode["state"] == "failed":
-        return NavigationUnavailable("The {} stack failed: {}. Switch again once that is fixed (POST /mode)."
-                                     .format(mode["mode"], (mode["message"] or "see GET /mode").rstrip(".")))
-    return None
 
 
 def _goal_from(data):

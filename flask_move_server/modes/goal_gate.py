@@ -1,0 +1,60 @@
+"""Goals only while a stack that takes them runs: the modes' side of every goal.
+
+A goal sent in the ~200 ms a switch takes to begin reached the stack going away (or none), was
+answered 202 and stayed ``active`` for good: no stack ran it, ``/stop`` left it ``canceling``,
+and a waiting ``/goto`` waited its whole timeout. So a goal is admitted only while the mode runs
+a stack with move_base; one under way when a switch begins is given up with the reason; and one
+sent as a switch began (between its admission and its send) is given up at once.
+"""
+
+from flask_move_server.errors import NavigationUnavailable, WrongMode
+
+IDLE_REFUSAL = ("The robot is idle: no navigation stack runs, so nothing takes goals. Start navigation on a map "
+                "first: POST /mode {\"mode\": \"navigation\", \"map\": NAME} (robotctl map use NAME; GET /maps "
+                "lists the maps).")
+SWITCHED = ("The robot switched to {}, which stops the stack that had the goal: it was given up. Send it again "
+            "once GET /mode says running.")
+
+
+class GoalGate:
+    """Admits goals for the mode manager ``modes`` and gives up ``navigator``'s goal when a switch begins."""
+
+    def __init__(self, modes, navigator):
+        self._modes = modes
+        self._navigator = navigator
+        modes.when_leaving_running(self._switching)
+
+    def admit(self):
+        """A ticket for a goal sent now; WrongMode (idle) or NavigationUnavailable (switching, failed) say why not."""
+        status, ticket = self._modes.status_and_generation()
+        refusal = self._refusal(status)
+        if refusal is not None:
+            raise refusal
+        return ticket
+
+    def confirm(self, ticket, seq):
+        """Goal ``seq`` was sent with ``ticket``: give it up if a switch began meanwhile."""
+        status, now = self._modes.status_and_generation()
+        if now != ticket:
+            self._navigator.abandon(SWITCHED.format(_describe(status)), "a mode switch began as it was sent", seq)
+
+    def _switching(self, status):
+        self._navigator.abandon(SWITCHED.format(_describe(status)), "the mode is switching")
+
+    def _refusal(self, status):
+        if status["mode"] == "idle":  # the owner's choice, not a failure: 409 like POST /pose
+            return WrongMode(IDLE_REFUSAL)
+        if status["state"] in ("starting", "stopping"):
+            return NavigationUnavailable("The {} stack is {}: send the goal again once GET /mode says running."
+                                         .format(status["mode"], status["state"]))
+        if status["state"] == "failed":
+            return NavigationUnavailable("The {} stack failed: {}. Switch again once that is fixed (POST /mode)."
+                                         .format(status["mode"], (status["message"] or "see GET /mode").rstrip(".")))
+        if not self._modes.takes_goals(status["mode"]):
+            return NavigationUnavailable("The {} stack runs no move_base, so nothing takes goals."
+                                         .format(status["mode"]))
+        return None
+
+
+def _describe(status):
+    return status["mode"] + (" on " + status["map"] if status.get("map") else "")

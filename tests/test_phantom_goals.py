@@ -1,0 +1,79 @@
+"""No phantom goals: a goal is taken only while a stack that runs it is up, and never hangs.
+
+A ``/goto`` within ~200 ms of a switch answered 202 and stayed ``active`` for good: no stack ran
+it, ``/stop`` left it ``canceling``, a waiting ``/goto`` waited its whole timeout. Real server
+process (``--sim``) for the switches; a real actionlib server that never answers for the rest.
+"""
+
+import actionlib
+import pytest
+from move_base_msgs.msg import MoveBaseAction
+
+from flask_move_server import cli
+from flask_move_server.errors import NavigationFailed
+from flask_move_server.geometry import Goal, Pose2D
+from tests.conftest import stop_process, wait_for
+from tests.robot_fixtures import no_drive
+from tests.test_sim_e2e import SimServer
+
+
+@pytest.fixture(scope="module")
+def sim(tmp_path_factory):
+    server = SimServer(tmp_path_factory.mktemp("phantom"))
+    yield server
+    stop_process(server.proc)
+
+
+def _running(sim):
+    wait_for(lambda: sim.get("/mode").json()["state"] == "running", timeout=60, message="the mode running")
+
+
+@pytest.mark.parametrize("switch, refusal", [
+    ({"mode": "mapping"}, (503, "move_base_unavailable")),
+    ({"mode": "idle"}, (409, "wrong_mode")),
+    ({"mode": "navigation"}, (503, "move_base_unavailable")),
+])
+def test_a_goal_sent_as_a_switch_begins_is_refused_not_left_active(sim, switch, refusal):
+    _running(sim)
+    assert sim.post("/mode", switch).status_code == 202
+    answer = sim.post("/goto", {"x": 3.0, "y": 0.5, "yaw": 0.0, "wait": 20}, timeout=30)
+    assert (answer.status_code, answer.json()["error"]) == refusal, answer.text
+    _running(sim)
+    assert sim.get("/status").json()["navigation"]["state"] not in ("active", "canceling")
+
+
+def test_a_goal_under_way_when_a_switch_begins_ends_with_the_reason(sim):
+    _running(sim)
+    if sim.get("/mode").json()["mode"] != "navigation":
+        assert sim.post("/mode", {"mode": "navigation", "wait": 60}, timeout=90).status_code == 200
+    assert sim.post("/goto", {"x": 8.4, "y": 0.9, "yaw": 0.0}).status_code == 202
+    assert sim.post("/mode", {"mode": "mapping"}).status_code == 202
+    navigation = wait_for(lambda: (lambda n: n if n["state"] not in ("active", "canceling") else None)(
+        sim.get("/status").json()["navigation"]), timeout=10, message="the goal to end")
+    assert navigation["state"] == "aborted"
+    assert navigation["message"].startswith("The robot switched to mapping"), navigation
+
+
+@pytest.fixture
+def mute_robot(robot_config, ros_node, unique_name):
+    """The real robot, its move_base one that hears goals and never answers them."""
+    mute = actionlib.ActionServer(unique_name + "/move_base", MoveBaseAction, goal_cb=lambda handle: None,
+                                  auto_start=False)
+    mute.start()
+    robot = cli.build_robot(robot_config, ros_node, no_drive())
+    wait_for(robot.navigator.server_ready, timeout=15, message="the action client to see the mute move_base")
+    yield robot
+    robot.close()
+
+
+def test_a_goal_no_move_base_acknowledges_is_given_up_with_the_reason(mute_robot):
+    """A move_base that hears goals but never answers them (its stack going away): the goal is
+    aborted after ``ack_patience``, a waiting client is told why, and /stop has nothing to cancel."""
+    mute_robot.navigator.ack_patience = 0.5
+    seq = mute_robot.goto(Goal(Pose2D(1.0, 0.0, 0.0)))
+    with pytest.raises(NavigationFailed) as failed:
+        mute_robot.wait(seq, 10)
+    assert failed.value.state == "aborted"
+    assert "move_base did not acknowledge the goal" in str(failed.value)
+    assert mute_robot.navigation_status()["state"] == "aborted"
+    assert mute_robot.stop() is False  # nothing left canceling
