@@ -161,7 +161,7 @@ class Server:
         if backend is None:
             log.info("modes: the navigation stack is started outside this server (modes.stack: %s)", cfg.modes.stack)
         modes = ModeManager(cfg, backend, self.events, relocalize=initial_pose.publish,
-                            goals_ready=lambda: self.robot.health()["move_base"] == "ready")
+                            goals_ready=lambda: self.robot.navigator.server_ready())
         stack.callback(modes.close)
         if backend is not None:
             from flask_move_server.modes.goal_gate import GoalGate

@@ -33,6 +33,7 @@ class Robot:
         """Send the robot to ``goal``; returns the goal's sequence number."""
         self._refuse_motion("goals are")
         ticket = self.goal_gate.admit() if self.goal_gate is not None else None
+        self.drive.rearm()  # a deliberate command: motion after an e-stop release starts here
         seq = self.navigator.goto(goal)
         if self.goal_gate is not None:
             self.goal_gate.confirm(ticket, seq)
@@ -82,6 +83,7 @@ class Robot:
     def teleop(self, linear, angular):
         """Drive at the given velocity for the deadman time; cancels a goal under way."""
         self._refuse_motion("teleop is")
+        self.drive.rearm()  # a deliberate command: motion after an e-stop release starts here
         result = self.teleop_control.command(linear, angular)
         if self.navigator.active:
             self.navigator.cancel()
@@ -132,8 +134,13 @@ class Robot:
         return {
             "status": "ok",
             "ros": self.node.health,
-            "move_base": "ready" if self.navigator.server_ready() else "unavailable",
+            "move_base": "ready" if self.takes_goals() else "unavailable",
         }
+
+    def takes_goals(self):
+        """True when a goal sent now would be taken: move_base answers, and the mode runs (never waits)."""
+        gate = self.goal_gate
+        return self.navigator.server_ready() and (gate is None or gate.open_now())
 
     def close(self):
         """Stop moving, then release the ROS connections and the teleop thread. Idempotent."""

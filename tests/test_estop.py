@@ -100,10 +100,29 @@ def test_estop_halts_the_motors_at_once_and_the_base_refuses_cmd_vel(moving_robo
 
         client.post("/estop/release")
         assert drive.status()["left"] == 0.0  # a release moves nothing by itself
+        refused = drive.status()["estop_refused_commands"]
+        for _ in range(10):  # ...nor does the node still streaming the command it sent before (IEC 60204-1)
+            pub.publish(fast)
+            time.sleep(0.05)
+        wait_for(lambda: drive.status()["estop_refused_commands"] > refused, message="the stream refused")
+        assert drive.status()["left"] == 0.0 and drive.status()["awaiting_zero"] is True
+        wait_for(lambda: pub.publish(Twist()) or not drive.status()["awaiting_zero"], interval=0.05,
+                 message="a zero command (the stick let go) to re-arm")
         wait_for(lambda: pub.publish(fast) or drive.status()["left"] > 0, interval=0.05,
                  message="commands to be obeyed again")
     finally:
         pub.unregister()
+
+
+def test_after_a_release_a_new_teleop_from_the_api_moves_the_robot(moving_robot, robot_config):
+    """A deliberate command after the release (teleop, a goal) re-arms at once: no zero needed first."""
+    drive, client = moving_robot.drive, _app(robot_config, moving_robot)
+    assert client.post("/estop").status_code == 200
+    client.post("/estop/release")
+    assert drive.status()["awaiting_zero"] is True
+    wait_for(lambda: drive.status()["left"] > 0 or client.post("/teleop", json={"linear": 0.3}).status_code != 200
+             and False, interval=0.1, message="the teleop command to drive the motors")
+    assert drive.status()["awaiting_zero"] is False
 
 
 def test_the_latch_and_the_watchdog_work_with_ros_down(robot_config, sim_drive_config):

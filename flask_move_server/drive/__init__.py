@@ -22,6 +22,9 @@ class NoDrive:
     def stop(self):
         """Nothing to stop: no motors are driven by this process."""
 
+    def rearm(self):
+        """Nothing to re-arm: the base controller that drives the motors is another node."""
+
     def close(self):
         """Nothing to release."""
 

@@ -49,6 +49,8 @@ class BaseController:
         self._fault = None
         self._ignored = 0
         self._held = 0
+        self._awaiting_zero = False  # after an e-stop: a zero command or rearm() before any motion
+        self._said_awaiting_zero = False
         self._closed = False
         self._ros = None
         self._threads = [
@@ -74,6 +76,9 @@ class BaseController:
             if self.estop is not None and self.estop.latched:
                 self._held += 1
                 return False
+            if self._awaiting_zero and not self._rearmed_by(linear, angular):
+                self._held += 1
+                return False
             if self._closed or not self.motion.command(linear, angular):
                 self._ignored += 1
                 return False
@@ -84,10 +89,33 @@ class BaseController:
             self._cond.notify_all()
             return True
 
+    def _rearmed_by(self, linear, angular):
+        """Lock held, after an e-stop: a zero command re-arms (True); anything else is refused.
+
+        A node still streaming ``/cmd_vel`` (a joystick held, a script) drove the robot the moment
+        the e-stop was released; as IEC 60204-1 asks of a reset, releasing moves nothing, and motion
+        needs a zero command (the stick let go) or a deliberate new command (:meth:`rearm`) first.
+        """
+        if linear == 0.0 and angular == 0.0:
+            self._awaiting_zero = False
+            log.info("a zero /cmd_vel after the e-stop: motion commands are accepted again")
+            return True
+        if not self._said_awaiting_zero:
+            self._said_awaiting_zero = True
+            log.warning("refused a /cmd_vel (linear %s, angular %s) after the e-stop: a zero command, or a new "
+                        "goal or teleop from the API, comes first", linear, angular)
+        return False
+
+    def rearm(self):
+        """A deliberate new command from the API (a goal, teleop): motion is accepted again after an e-stop."""
+        with self._cond:
+            self._awaiting_zero = False
+
     def _on_cmd_vel(self, msg):
         if not self.node.connected:
             return  # master lost: stay stopped until it answers again
-        if not self.command(msg.linear.x, msg.angular.z) and not (self.estop and self.estop.latched):
+        refused = (self.estop is not None and self.estop.latched) or self._awaiting_zero
+        if not self.command(msg.linear.x, msg.angular.z) and not refused:
             log.warning("ignored a /cmd_vel that is not finite: linear %s, angular %s", msg.linear.x, msg.angular.z)
 
     def stop(self, reason=None):
@@ -106,6 +134,8 @@ class BaseController:
 
     def _estop_engaged(self, source):
         """The latch halts the motors here, first and directly: no ROS on the way."""
+        with self._cond:
+            self._awaiting_zero, self._said_awaiting_zero = True, False
         self.stop()
 
     # the shared arithmetic (called with the lock held) -----------------------------
@@ -227,6 +257,7 @@ class BaseController:
                 "error": self._fault or self.backend.error,
                 "ignored_commands": self._ignored,
                 "estop_refused_commands": self._held,
+                "awaiting_zero": self._awaiting_zero,
                 "odom": self.odometry.as_dict(),
             }
 

@@ -32,6 +32,11 @@ class GoalGate:
             raise refusal
         return ticket
 
+    def open_now(self):
+        """True when a goal sent now would be admitted."""
+        status, _ = self._modes.status_and_generation()
+        return self._refusal(status) is None
+
     def confirm(self, ticket, seq):
         """Goal ``seq`` was sent with ``ticket``: give it up if a switch began meanwhile."""
         status, now = self._modes.status_and_generation()
