@@ -24,6 +24,7 @@ from move_base_msgs.msg import MoveBaseAction, MoveBaseActionGoal, MoveBaseGoal
 
 from flask_move_server.errors import NavigationUnavailable, RosUnavailable
 from flask_move_server.goal_endings import failure_sentence, replaced_end, said_sentence
+from flask_move_server.log_limits import Throttled
 from flask_move_server.ros import master
 from flask_move_server.ros.action_status import read_status_lightly
 from flask_move_server.ros.convert import pose_from_msg, pose_stamped, write_pose
@@ -39,6 +40,7 @@ IDLE, ACTIVE, CANCELING, SUCCEEDED, ABORTED, CANCELED, REJECTED = (
 )
 TERMINAL = (SUCCEEDED, ABORTED, CANCELED, REJECTED)
 UNDER_WAY = (ACTIVE, CANCELING)
+GOAL_LINES_BURST = 20  # goal lines logged per 10 s; the rest of a storm is counted
 ENDS_KEPT = 16  # replaced goals whose ends are kept for a client still waiting on one
 
 _FROM_STATUS = {
@@ -82,6 +84,7 @@ class Navigator:
         self._unacknowledged = None  # (seq, sent at) of a goal move_base has not answered yet
         self._ack_watch = None
         self._closed = False
+        self._goal_lines = Throttled(log, "goal lines", burst=GOAL_LINES_BURST)  # a goal storm: not 300 lines/s
         node.when_ready(self._setup)
         node.when_lost(self._master_lost)
 
@@ -125,7 +128,7 @@ class Navigator:
                 self._spare_message = MoveBaseGoal()  # the next goal's, built once this one is on its way
             else:
                 self._goal_pub.publish(pose_stamped(goal.pose, self._frame, rospy.Time.now()))
-        log.info("goal %d: %s %s", seq, goal.target or "pose", goal.pose.as_dict())
+        self._goal_lines.info("goal %d: %s %s", seq, goal.target or "pose", goal.pose.as_dict())
         return seq
 
     def _expect_acknowledgement(self, seq):
@@ -154,7 +157,7 @@ class Navigator:
                     self._cancel_sent = time.monotonic()
                 self._cond.notify_all()
             self._send_cancel()
-        log.info("goal %d: cancel %s", seq, "requested" if newly else "sent again")
+        self._goal_lines.info("goal %d: cancel %s", seq, "requested" if newly else "sent again")
         return newly
 
     def _send_cancel(self):
@@ -301,7 +304,7 @@ class Navigator:
         state = _FROM_STATUS.get(status, ABORTED)
         said = self._said(state)
         self._finish(seq, state, said)
-        log.info("goal %d: %s%s", seq, state, " ({})".format(said) if said else "")
+        self._goal_lines.info("goal %d: %s%s", seq, state, " ({})".format(said) if said else "")
 
     def _said(self, state):
         """move_base's own reason for a goal that failed (its status text: "Failed to find a valid plan…"), or None.

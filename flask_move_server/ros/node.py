@@ -25,9 +25,12 @@ import threading
 import time
 
 from flask_move_server import ast_guard
+from flask_move_server.log_limits import ThrottleFilter
 from flask_move_server.ros import master
 
 log = logging.getLogger(__name__)
+
+ACTIONLIB_STORM_LINES = ("already in the DONE state", "received DONE twice")
 ast_guard.serialise_ast_parse()  # rospy's threads format tracebacks while an app may be parsing routes
 
 WAITING, CONNECTED, LOST, NEW_MASTER, CLOSED = "waiting", "connected", "lost", "new_master", "closed"
@@ -191,6 +194,8 @@ class RosNode:
             self.name = rospy.get_name()
             return
         rospy.init_node(self.name, disable_signals=True)
+        # actionlib's errors about a goal already ended come in goal storms, one per goal: throttled
+        logging.getLogger("rosout").addFilter(ThrottleFilter(ACTIONLIB_STORM_LINES))
         self.name = rospy.get_name()
         self._owns_rospy = True
 
