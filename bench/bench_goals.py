@@ -42,6 +42,7 @@ server: {{host: 127.0.0.1, port: 0}}
 waypoints: {{file: {waypoints}}}
 navigation: {{goal_interface: action, action: move_base}}
 drive: {{backend: none}}
+modes: {{stack: none}}  # this bench runs move_base itself (the stand-in), as an outside stack
 """
 
 
