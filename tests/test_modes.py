@@ -364,3 +364,22 @@ def test_a_pose_sent_while_a_switch_is_under_way_is_refused_not_lost(cfg, harnes
     assert harness.poses == [Pose2D(0.5, -1.0, 1.57)]  # the dock, as the running message says
     harness.modes.set_pose(Pose2D(2.0, 1.0, 0.0))
     assert harness.poses[-1] == Pose2D(2.0, 1.0, 0.0)
+
+
+def test_a_failure_quoting_a_huge_value_is_cut_in_every_status(robot_config):
+    """A failed start quoted a hostile map's value whole: /status, /mode and every event carried 36 MB."""
+    from flask_move_server.events import EventBus
+    from flask_move_server.modes.manager import MESSAGE_LIMIT, ModeManager
+    from tests.modes_standin import StandInStack, save_map
+
+    stack = StandInStack()
+    stack.failures.append("origin: must be [x, y, yaw], got " + "[x, " * 1_000_000)
+    save_map(robot_config, "flat")
+    manager = ModeManager(robot_config, stack, EventBus())
+    try:
+        manager.switch("navigation", "flat")
+        wait_for(lambda: manager.status()["state"] == "failed", message="the start to fail")
+        status = manager.status()
+    finally:
+        manager.close()
+    assert status["message"].startswith("origin: must be") and len(status["message"]) <= MESSAGE_LIMIT

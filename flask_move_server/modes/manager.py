@@ -32,6 +32,8 @@ from flask_move_server.modes.targets import IDLE, OUTSIDE, Target, Targets
 
 log = logging.getLogger(__name__)
 
+MESSAGE_LIMIT = 500  # characters of a mode's message (a stack's failure, a note)
+
 def _now_iso():
     return datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")
 
@@ -232,7 +234,8 @@ class ModeManager:
 
     @staticmethod
     def _body(target, state, message):
-        return {"mode": target.mode, "map": target.map, "state": state, "since": _now_iso(), "message": message}
+        return {"mode": target.mode, "map": target.map, "state": state, "since": _now_iso(),
+                "message": _bounded(message)}
 
     # crashes ---------------------------------------------------------------
 
@@ -341,3 +344,14 @@ class ModeManager:
             close = getattr(self._backend, "close", None)
             if close is not None:
                 close()
+
+
+def _bounded(message, limit=MESSAGE_LIMIT):
+    """A status message cut to ``limit`` characters: it goes into every /status, /mode and event.
+
+    A failed start quoted a hostile map file's value whole, and every answer carried 36 MB until
+    the next switch.
+    """
+    if message is None or len(message) <= limit:
+        return message
+    return message[:limit - 1].rstrip() + "…"
