@@ -27,6 +27,7 @@ BENCHMARKS = [
     ("stack", "bench_stack.py", ["--repeat", "2"]),
     ("abuse", "bench_abuse.py", ["--connections", "100", "--rounds", "10", "--signals", "2",
                                  "--storm-seconds", "4"]),
+    ("drive_gaps", "bench_drive_gaps.py", ["--seconds", "3"]),
     ("sim_modes", "bench_sim_modes.py", ["--switches", "2", "--drive-seconds", "30"]),
     ("events", "bench_events.py", ["--rest-seconds", "3", "--drive-seconds", "5", "--stops", "3"]),
     ("page", "bench_page.py", ["--loads", "3"]),
