@@ -1,6 +1,7 @@
 """The mode manager: one switch at a time, failures said, crashes restarted, the mode remembered."""
 
 import json
+import logging
 
 import pytest
 
@@ -243,14 +244,20 @@ def test_restore_comes_back_to_the_remembered_mode(cfg):
 
 
 @pytest.mark.parametrize("kind, expected", [("sim", ("navigation", None)), ("roslaunch", ("idle", None))])
-@pytest.mark.parametrize("state_text", [None, "{not json", '{"mode": "dancing"}', '["idle"]'],
-                         ids=["missing", "broken", "unknown mode", "not an object"])
-def test_restore_without_a_usable_state_file_starts_the_default(cfg, kind, expected, state_text):
+@pytest.mark.parametrize("state_text", [None, "{not json", '{"mode": "dancing"}', '["idle"]', "[" * 5000 + "]" * 5000,
+                                        '{"mode": ' * 3000 + "1" + "}" * 3000],
+                         ids=["missing", "broken", "unknown mode", "not an object", "deep list", "deep object"])
+def test_restore_without_a_usable_state_file_starts_the_default(cfg, kind, expected, state_text, caplog):
     cfg.modes.stack = kind
-    status, starts = _restored(cfg, state_text)
+    with caplog.at_level(logging.INFO, logger="flask_move_server.modes"):
+        status, starts = _restored(cfg, state_text)
     assert (status["mode"], status["map"]) == expected and status["state"] == "running"
     if kind == "roslaunch":
         assert "mapping" in status["message"] and starts == []
+    said = [r for r in caplog.records if "starting the default" in r.getMessage()]
+    assert len(said) == 1 and len(said[0].getMessage()) < 500
+    if state_text is not None:  # broken: a warning naming the file and why
+        assert said[0].levelno == logging.WARNING and cfg.mode_state_file() in said[0].getMessage()
 
 
 def test_a_robot_upgraded_with_its_map_saved_as_map_navigates_on_it(cfg):

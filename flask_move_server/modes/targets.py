@@ -96,7 +96,10 @@ class Targets:
     def remembered(self, remembered, reason):
         """Where to come back to at start-up, from ``state_file.load``'s answer; never raises."""
         if remembered is None:
-            log.info("no mode to come back to (%s): starting the default", reason)
+            if reason:
+                log.warning("cannot come back to the mode before the restart: %s; starting the default", reason)
+            else:
+                log.info("no mode remembered yet: starting the default")
             target = default_target(self.config.stack_kind(), self.catalogue.exists(UPGRADED_MAP))
             return self.of(target.mode, target.map) if target.map else target
         mode, map_name = remembered

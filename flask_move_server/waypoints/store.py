@@ -6,7 +6,9 @@ as ``.bak``), an ``fcntl`` lock serialises writers across processes (the server 
 ``record-waypoints``), and a change made on disk by someone else (a text editor) is picked up
 before the next read or write instead of being overwritten. A file that would silently lose
 the last good waypoints (empty, cut short, no ``waypoints:``) is a problem to report, not a
-deletion: only ``waypoints: {}`` clears them. The file plumbing lives in
+deletion: only ``waypoints: {}`` clears them. A broken file, at start-up too, is served as the
+last good set (none before one loaded) with :attr:`~WaypointStore.problem` saying why, logged
+once per version of the file, and refuses changes until fixed. The file plumbing lives in
 :mod:`flask_move_server.waypoints.locked_file`, the format in
 :mod:`flask_move_server.waypoints.yaml_format`. Pure: no rospy, no Flask.
 """
@@ -46,7 +48,7 @@ class WaypointStore:
         self._listeners = []
         waypoints_file.remove_leftovers(self.path, lock_timeout)
         with self._lock:
-            self._refresh(strict=True)
+            self._refresh()  # a broken file is a problem to report, never a server that cannot start
 
     def use_file(self, path):
         """Serve the waypoints of ``path`` from now on (the active map's, or the single file).
@@ -165,8 +167,7 @@ class WaypointStore:
             text = waypoints_file.read(self.path)
             waypoints = self._load(text)
         except WaypointFileError as exc:
-            self._stamp, self._problem = stamp, str(exc)
-            log.error("%s; still using the %d waypoints loaded before", exc, len(self._waypoints))
+            self._broken(stamp, str(exc))
             if strict:
                 raise WaypointFileError(
                     "{}; nothing was changed. Fix the file,{} or write 'waypoints: {{}}' to it to delete every "
@@ -178,6 +179,14 @@ class WaypointStore:
             self.version += 1
         self._waypoints, self._good_text, self._loaded = waypoints, text, True
         self._stamp, self._problem = stamp, None
+
+    def _broken(self, stamp, problem):
+        """Remember why the file cannot be loaded: logged once per version of the file, not per request."""
+        if (stamp, problem) != (self._stamp, self._problem):
+            serving = ("still serving the {} waypoints loaded before".format(len(self._waypoints)) if self._loaded
+                       else "serving no waypoints until it is fixed")
+            log.error("%s; %s", problem, serving)
+        self._stamp, self._problem = stamp, problem
 
     def _load(self, text):
         """The waypoints of ``text``, or WaypointFileError when it is broken or would lose the last good set."""

@@ -6,10 +6,13 @@ The format is the mapping guide's::
       kitchen: [1.23, 4.56, 0.79]     # x [m], y [m], yaw [rad] in the map frame
 
 (``{x: .., y: .., yaw: ..}`` per entry loads too). A name given twice is an error, and so are
-anchors and aliases (a few hundred bytes could expand to megabytes). :func:`dump` writes the
-seed format back, with numbers PyYAML reads as floats. Pure: PyYAML only.
+anchors and aliases (a few hundred bytes could expand to megabytes) and nesting deeper than
+:data:`MAX_DEPTH` (PyYAML composes recursively: 5,000 brackets were a RecursionError). Whatever
+the parser raises on a hand-edited file is a :class:`WaypointFileError`, never another exception.
+:func:`dump` writes the seed format back, with numbers PyYAML reads as floats. Pure: PyYAML only.
 """
 
+import collections.abc
 import json
 import re
 
@@ -20,14 +23,20 @@ from flask_move_server.waypoints import make_waypoint
 
 _PLAIN_KEY_RE = re.compile(r"[A-Za-z_][A-Za-z0-9_-]*")
 MAX_QUOTED = 300  # characters of the file an error message may quote
+MAX_DEPTH = 16  # levels of nesting: a waypoints file needs 4 (file, waypoints, entry, coordinate)
 
 
 class _UniqueKeyLoader(yaml.SafeLoader):
-    """SafeLoader that rejects a name given twice, and any anchor or alias.
+    """SafeLoader that rejects a name given twice, any anchor or alias, and deep nesting.
 
     Aliases let a few hundred bytes expand to megabytes (in memory, in error
-    messages, in /status); a waypoints file has no use for them.
+    messages, in /status); a waypoints file has no use for them. Nesting is
+    refused before PyYAML's recursion could reach Python's limit.
     """
+
+    def __init__(self, stream):
+        super().__init__(stream)
+        self._depth = 0
 
     def compose_node(self, parent, index):
         event = self.peek_event()
@@ -35,13 +44,28 @@ class _UniqueKeyLoader(yaml.SafeLoader):
             raise yaml.composer.ComposerError(
                 None, None, "anchors and aliases ('&', '*') are not allowed in a waypoints file", event.start_mark
             )
-        return super().compose_node(parent, index)
+        if self._depth >= MAX_DEPTH:
+            raise yaml.composer.ComposerError(
+                None, None, "nested more than {} levels deep".format(MAX_DEPTH), event.start_mark)
+        self._depth += 1
+        try:
+            return super().compose_node(parent, index)
+        finally:
+            self._depth -= 1
+
+    def construct_object(self, node, deep=False):
+        try:
+            return super().construct_object(node, deep)
+        except (ArithmeticError, LookupError, TypeError, ValueError):  # a date like 2001-13-45, say
+            raise yaml.constructor.ConstructorError(None, None, "a value that cannot be read", node.start_mark)
 
 
 def _construct_mapping(loader, node, deep=False):
     seen = set()
     for key_node, _ in node.value:
         key = loader.construct_object(key_node, deep=deep)
+        if not isinstance(key, collections.abc.Hashable):
+            raise yaml.constructor.ConstructorError(None, None, "a key must be a plain name", key_node.start_mark)
         if key in seen:
             raise yaml.constructor.ConstructorError(
                 None, None, "{!r} appears twice".format(key), key_node.start_mark
@@ -65,10 +89,7 @@ def parse(text, source="waypoints"):
 
 def entries_of(text, source="waypoints"):
     """The raw ``waypoints:`` mapping of the file's text; None when blank or not given."""
-    try:
-        data = yaml.load(text, Loader=_UniqueKeyLoader)  # noqa: S506 - a SafeLoader subclass
-    except yaml.YAMLError as exc:
-        raise WaypointFileError("{} is not valid YAML: {}".format(source, _shorten(" ".join(str(exc).split()))))
+    data = _load_yaml(text, source)
     if data is None:
         return None
     if not isinstance(data, dict) or set(data) - {"waypoints"}:
@@ -77,6 +98,16 @@ def entries_of(text, source="waypoints"):
     if entries is not None and not isinstance(entries, dict):
         raise WaypointFileError("{}: 'waypoints' must map names to [x, y, yaw]".format(source))
     return entries
+
+
+def _load_yaml(text, source):
+    """The YAML document of ``text``; WaypointFileError for whatever makes it unreadable."""
+    try:
+        return yaml.load(text, Loader=_UniqueKeyLoader)  # noqa: S506 - a SafeLoader subclass
+    except yaml.YAMLError as exc:
+        raise WaypointFileError("{} is not valid YAML: {}".format(source, _shorten(" ".join(str(exc).split()))))
+    except Exception as exc:  # noqa: BLE001 - hostile text: whatever the parser raises, the file is broken
+        raise WaypointFileError("{} cannot be read as YAML ({})".format(source, type(exc).__name__))
 
 
 def waypoints_of(entries, source):

@@ -1,0 +1,111 @@
+"""Hand-edited files against a hostile probe (issue 21): an attacker on the Wi-Fi, an owner with a
+text editor, a robot losing power.
+
+The waypoints file and the maps folder are real files in a temporary folder; the web layer runs
+against tests/fake_robot.py and the real store, catalogue and map service.
+"""
+
+import logging
+
+import pytest
+
+from flask_move_server.errors import WaypointFileError
+from flask_move_server.events import EventBus
+from flask_move_server.maps.catalogue import MapCatalogue
+from flask_move_server.maps.service import MapService
+from flask_move_server.waypoints import make_waypoint
+from flask_move_server.waypoints.store import WaypointStore
+from flask_move_server.web import create_app
+from tests.fake_maps import FakeMapSource, FakeModes
+from tests.fake_robot import FakeRobot
+from tests.modes_standin import save_map
+from tests.test_waypoints import SEED
+
+DEEP = "waypoints: " + "[" * 5000 + "]" * 5000 + "\n"  # 10 KB: was a RecursionError (a 500, 200 KB logged)
+DEEP_MAPPING = "waypoints:\n  kitchen: " + "{a: " * 3000 + "1" + "}" * 3000 + "\n"
+BAD_DATE = "waypoints:\n  kitchen: [1, 2, 3]\n  2001-02-30: [1, 2, 3]\n"  # was a ValueError
+LIST_KEY = "waypoints:\n  [kitchen]: [1, 2, 3]\n"  # was a TypeError (unhashable)
+
+
+@pytest.fixture
+def seed_file(tmp_path):
+    path = tmp_path / "waypoints.yaml"
+    path.write_text(SEED)
+    return path
+
+
+@pytest.fixture
+def robot():
+    return FakeRobot()
+
+
+@pytest.fixture
+def app(robot_config, robot, store):
+    events = EventBus()
+    maps = MapService(MapCatalogue(robot_config.maps_folder()), store, FakeMapSource(), modes=FakeModes(events),
+                      events=events)
+    return create_app(robot_config, robot, store, events=events, maps=maps)
+
+
+def _said(caplog, text):
+    return [r for r in caplog.records if text in r.getMessage()]
+
+
+# 1. any parse failure is a broken file: last good served, said once, never a 500 --------------------------
+
+
+@pytest.mark.parametrize("text, problem", [
+    (DEEP, "nested more than 16 levels deep"),
+    (DEEP_MAPPING, "nested more than 16 levels deep"),
+    (BAD_DATE, "a value that cannot be read"),
+    (LIST_KEY, "a key must be a plain name"),
+])
+def test_any_parse_failure_keeps_the_last_good_set_said_once_per_version(seed_file, caplog, text, problem):
+    store = WaypointStore(seed_file)
+    seed_file.write_text(text)
+    with caplog.at_level(logging.INFO):
+        for _ in range(20):  # a phone polling at 10 Hz
+            assert [w.name for w in store.all()] == ["kitchen", "office", "dock"]
+            assert problem in store.problem
+        for _ in range(3):
+            with pytest.raises(WaypointFileError):
+                store.put(make_waypoint("porch", 1, 1, 1))
+    assert len(_said(caplog, problem)) == 1, [r.getMessage()[:200] for r in caplog.records]
+    assert max(len(r.getMessage()) for r in caplog.records) < 1500
+    assert seed_file.read_text() == text
+    seed_file.write_text(text + "\n")  # another version of the file, as broken: said again, once
+    with caplog.at_level(logging.INFO):
+        store.all()
+        store.all()
+    assert len(_said(caplog, problem)) == 2
+
+
+@pytest.mark.parametrize("text", [DEEP, BAD_DATE, LIST_KEY])
+def test_a_broken_file_at_start_up_serves_none_and_says_why_never_a_crash(seed_file, text):
+    seed_file.write_text(text)
+    store = WaypointStore(seed_file)
+    assert store.all() == [] and store.problem
+    with pytest.raises(WaypointFileError, match="nothing was changed"):
+        store.put(make_waypoint("porch", 1, 1, 1))
+    assert seed_file.read_text() == text
+
+
+def test_deep_nesting_answers_200_on_status_waypoints_and_maps(client, robot_config, caplog):
+    path = robot_config.waypoints.file
+    save_map(robot_config, "flat", waypoints=DEEP)  # GET /maps counts each map's waypoints
+    with open(path, "w") as f:
+        f.write(DEEP)
+    with caplog.at_level(logging.INFO):
+        for _ in range(5):
+            status = client.get("/status")
+            assert status.status_code == 200
+            assert "nested more than 16 levels deep" in status.get_json()["waypoints"]["problem"]
+            assert len(status.get_data()) < 5000
+            listed = client.get("/waypoints")
+            assert listed.status_code == 200 and len(listed.get_json()["waypoints"]) == 3
+            maps = client.get("/maps")
+            assert maps.status_code == 200 and maps.get_json()["maps"][0]["waypoints"] == 0
+        put = client.put("/waypoints/porch", json={"x": 1, "y": 2, "yaw": 0})
+    assert put.status_code == 409 and put.get_json()["error"] == "waypoints_file"
+    assert len(_said(caplog, "nested more than 16 levels deep")) == 1
+    assert sum(len(r.getMessage()) for r in caplog.records) < 5000
