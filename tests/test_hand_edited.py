@@ -6,6 +6,7 @@ against tests/fake_robot.py and the real store, catalogue and map service.
 """
 
 import logging
+import os
 
 import pytest
 
@@ -109,3 +110,74 @@ def test_deep_nesting_answers_200_on_status_waypoints_and_maps(client, robot_con
     assert put.status_code == 409 and put.get_json()["error"] == "waypoints_file"
     assert len(_said(caplog, "nested more than 16 levels deep")) == 1
     assert sum(len(r.getMessage()) for r in caplog.records) < 5000
+
+
+# 2. a link planted where the store writes is never written through -----------------------------------------
+
+OUTSIDE = "the owner's file, outside the data folder\n"
+
+
+@pytest.fixture
+def outside(tmp_path):
+    folder = tmp_path / "elsewhere"
+    folder.mkdir()
+    target = folder / "authorized_keys"
+    target.write_text(OUTSIDE)
+    return target
+
+
+@pytest.mark.parametrize("planted", ["{}.bak.tmp", "{}.bak"])
+def test_a_link_planted_where_a_save_writes_is_replaced_and_its_target_untouched(tmp_path, outside, planted):
+    folder = tmp_path / "maps"
+    folder.mkdir()
+    path = folder / "flat.waypoints.yaml"
+    path.write_text(SEED)
+    store = WaypointStore(path)
+    (folder / planted.format(path.name)).symlink_to(outside)
+    store.put(make_waypoint("porch", 1, 1, 1))
+    store.put(make_waypoint("garage", 2, 2, 2))
+    assert outside.read_text() == OUTSIDE
+    assert [w.name for w in WaypointStore(path).all()][-2:] == ["porch", "garage"]
+    assert not path.is_symlink() and not (folder / (path.name + ".bak")).is_symlink()
+    assert "porch" in (folder / (path.name + ".bak")).read_text()
+
+
+def test_a_linked_waypoints_file_is_read_through_and_replaced_by_the_first_save(seed_file, outside):
+    outside.write_text(SEED)
+    seed_file.unlink()
+    seed_file.symlink_to(outside)
+    store = WaypointStore(seed_file)
+    assert len(store.all()) == 3
+    store.put(make_waypoint("porch", 1, 1, 1))
+    assert outside.read_text() == SEED and not seed_file.is_symlink()
+    assert [w.name for w in WaypointStore(seed_file).all()] == ["kitchen", "office", "dock", "porch"]
+
+
+def test_a_put_through_the_api_never_writes_through_a_planted_temporary(client, robot_config, outside):
+    link = robot_config.waypoints.file + ".bak.tmp"
+    os.symlink(str(outside), link)
+    for name in ("porch", "garage"):
+        assert client.put("/waypoints/" + name, json={"x": 1, "y": 2, "yaw": 0}).status_code == 201
+    assert outside.read_text() == OUTSIDE
+    assert "garage" in open(robot_config.waypoints.file).read()
+
+
+@pytest.mark.parametrize("exists", [True, False], ids=["to a file", "dangling"])
+def test_a_lock_file_that_is_a_link_is_refused_and_nothing_created_or_changed(seed_file, outside, exists):
+    target = outside if exists else outside.with_name("new_file")
+    store = WaypointStore(seed_file)
+    os.symlink(str(target), str(seed_file) + ".lock")
+    with pytest.raises(WaypointFileError) as err:
+        store.put(make_waypoint("porch", 1, 1, 1))
+    assert "symbolic link" in str(err.value) and "rm " in str(err.value)
+    assert seed_file.read_text() == SEED
+    assert outside.read_text() == OUTSIDE and not outside.with_name("new_file").exists()
+
+
+def test_temporaries_are_new_files_and_the_bak_keeps_the_files_mode(seed_file):
+    os.chmod(str(seed_file), 0o600)
+    store = WaypointStore(seed_file)
+    store.put(make_waypoint("porch", 1, 1, 1))
+    bak = str(seed_file) + ".bak"
+    assert os.stat(str(seed_file)).st_mode & 0o777 == 0o600 and os.stat(bak).st_mode & 0o777 == 0o600
+    assert [f for f in os.listdir(str(seed_file.parent)) if f.endswith(".tmp")] == []
