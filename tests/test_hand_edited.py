@@ -181,3 +181,33 @@ def test_temporaries_are_new_files_and_the_bak_keeps_the_files_mode(seed_file):
     bak = str(seed_file) + ".bak"
     assert os.stat(str(seed_file)).st_mode & 0o777 == 0o600 and os.stat(bak).st_mode & 0o777 == 0o600
     assert [f for f in os.listdir(str(seed_file.parent)) if f.endswith(".tmp")] == []
+
+
+# 3. errors say the line and what is wrong, never the file's text ----------------------------------------
+
+SECRET = "hunter2-s3cr3t"
+SECRET_FILES = [
+    pytest.param("waypoints:\n  kitchen: [1, 2, 3]\n  x: [" + SECRET + "\n", 4, id="syntax"),
+    pytest.param("waypoints:\n  kitchen: [1, 2, 3]\n  x: !" + SECRET + " [1, 2, 3]\n", 3, id="tag"),
+    pytest.param("waypoints:\n  kitchen: [1, 2, 3]\n  x: [1, 2, " + SECRET + "]\n", 3, id="coordinate"),
+    pytest.param("waypoints:\n  kitchen: [1, 2, 3]\n  x: " + SECRET + "\n", 3, id="entry"),
+    pytest.param("waypoints:\n  kitchen: [1, 2, 3]\n  " + SECRET + "/x: [1, 2, 3]\n", 3, id="name"),
+    pytest.param("waypoints:\n  " + SECRET + ": [1, 2, 3]\n  " + SECRET + ": [1, 2, 3]\n", 3, id="twice"),
+    pytest.param("waypoints:\n  kitchen: [1, 2, 3]\n  x: \"" + SECRET + "\\q\"\n", 3, id="escape"),
+]
+
+
+@pytest.mark.parametrize("text, line", SECRET_FILES)
+def test_a_linked_file_s_broken_line_is_never_quoted_in_answers_or_the_log(client, robot_config, outside, caplog,
+                                                                             text, line):
+    outside.write_text(text)  # a secret the waypoints file was linked to
+    os.unlink(robot_config.waypoints.file)
+    os.symlink(str(outside), robot_config.waypoints.file)
+    with caplog.at_level(logging.DEBUG):
+        problem = client.get("/status").get_json()["waypoints"]["problem"]
+        put = client.put("/waypoints/porch", json={"x": 1, "y": 2, "yaw": 0})
+    assert put.status_code == 409
+    said = [problem, put.get_json()["message"]] + [r.getMessage() for r in caplog.records]
+    assert "line {}".format(line) in problem
+    assert not [s for s in said if SECRET in s or "s3cr" in s]
+    assert outside.read_text() == text

@@ -102,7 +102,7 @@ def test_coordinates_are_bounded_a_yaw_more_tightly():
     ("waypoints: [1, 2]\n", "must map names"),
     ("waypoints:\n  a: [1, 2]\n", "expected [x, y, yaw]"),
     ("waypoints:\n  a: [1, 2, .nan]\n", "finite"),
-    ("waypoints:\n  a: [1.0e+308, 2, 3]\n", "x must be between -1000000 and 1000000"),
+    ("waypoints:\n  a: [1.0e+308, 2, 3]\n", "line 2: x must be a finite number between -1000000 and 1000000"),
     ("waypoints:\n  '.': [1, 2, 3]\n", "Invalid waypoint name"),
     ("waypoints:\n  a: [1, 2, 3]\n  a: [4, 5, 6]\n", "appears twice"),
     ("waypoints:\n  'a/b': [1, 2, 3]\n", "Invalid waypoint name"),
