@@ -10,10 +10,11 @@ import os
 
 import pytest
 
-from flask_move_server.errors import WaypointFileError
+from flask_move_server.errors import BadRequest, WaypointFileError
 from flask_move_server.events import EventBus
 from flask_move_server.maps.catalogue import MapCatalogue
 from flask_move_server.maps.service import MapService
+from flask_move_server.modes.targets import Targets
 from flask_move_server.waypoints import make_waypoint
 from flask_move_server.waypoints.store import WaypointStore
 from flask_move_server.web import create_app
@@ -211,3 +212,37 @@ def test_a_linked_file_s_broken_line_is_never_quoted_in_answers_or_the_log(clien
     assert "line {}".format(line) in problem
     assert not [s for s in said if SECRET in s or "s3cr" in s]
     assert outside.read_text() == text
+
+
+# 4. a name is never echoed back whole -------------------------------------------------------------------
+
+LONG = "k" * 100000
+MID = "k" * 8000  # within the body limit
+
+
+@pytest.mark.parametrize("method, path, body", [
+    ("put", "/waypoints/" + LONG, {"x": 1, "y": 2, "yaw": 0}),
+    ("get", "/waypoints/" + LONG, None),
+    ("delete", "/waypoints/" + LONG, None),
+    ("post", "/waypoints/" + LONG, None),
+    ("post", "/goto", {"name": MID}),
+    ("post", "/goto", {MID: 1}),
+    ("post", "/goto", {"name": [MID]}),
+    ("put", "/waypoints/ok", {"x": [MID], "y": 2, "yaw": 0}),
+    ("post", "/mode", {"mode": MID}),
+    ("post", "/mode", {"mode": "navigation", "pose": {MID: 1}}),
+    ("post", "/pose", {"name": MID}),
+    ("get", "/diagnostics?" + MID + "=1", None),
+], ids=lambda v: v[:20] if isinstance(v, str) else None)
+def test_a_long_name_is_cut_in_every_error(client, method, path, body):
+    answer = getattr(client, method)(path, json=body)
+    assert 400 <= answer.status_code < 500
+    message = answer.get_json()["message"]
+    assert "k" * 81 not in message and len(message) < 400, message[:200]  # names 64, paths 80 characters
+    assert "k" * 64 not in message or "\u2026" in message  # said to be cut
+
+
+def test_an_unknown_mode_is_cut_in_its_error(robot_config):
+    with pytest.raises(BadRequest) as err:
+        Targets(robot_config, MapCatalogue(robot_config.maps_folder())).of(MID)
+    assert len(str(err.value)) < 200 and "\u2026" in str(err.value)
