@@ -2,6 +2,7 @@
 
 import json
 import logging
+import os
 
 import pytest
 
@@ -371,3 +372,19 @@ def test_a_pose_sent_while_a_switch_is_under_way_is_refused_not_lost(cfg, harnes
     assert harness.poses == [Pose2D(0.5, -1.0, 1.57)]  # the dock, as the running message says
     harness.modes.set_pose(Pose2D(2.0, 1.0, 0.0))
     assert harness.poses[-1] == Pose2D(2.0, 1.0, 0.0)
+
+
+def test_a_mode_that_cannot_be_remembered_says_so_until_one_is(cfg, harness):
+    os.mkdir(cfg.mode_state_file())  # a folder where mode.json goes: it cannot be written, even as root
+    harness.modes.switch("mapping")
+    assert harness.modes.wait(5)
+    running = harness.modes.status()["message"]
+    assert "not remembered for the next start: cannot write {}".format(cfg.mode_state_file()) in running
+    assert running.startswith("running")  # what the mode says first, the problem after it
+    assert "not remembered" in harness.modes.switch("idle")["message"]  # the next switch's 202 says it too
+    assert harness.modes.wait(5)
+    os.rmdir(cfg.mode_state_file())
+    harness.modes.switch("mapping")
+    assert harness.modes.wait(5)
+    assert "not remembered" not in harness.modes.status()["message"]
+    assert json.load(open(cfg.mode_state_file())) == {"mode": "mapping", "map": None}
