@@ -246,3 +246,43 @@ def test_an_unknown_mode_is_cut_in_its_error(robot_config):
     with pytest.raises(BadRequest) as err:
         Targets(robot_config, MapCatalogue(robot_config.maps_folder())).of(MID)
     assert len(str(err.value)) < 200 and "\u2026" in str(err.value)
+
+
+# 6. truncation is judged by structure, not by a final newline ---------------------------------------------
+
+
+@pytest.mark.parametrize("text", [
+    SEED.rstrip("\n"),  # VS Code, Notepad
+    SEED.rstrip("\n") + "   # the dock, by the door",
+    "waypoints:\n  lab: {x: 1, y: 2.5, yaw: -0.5}",
+    "waypoints: {}",
+], ids=["seed", "comment", "flow-mapping", "empty-on-purpose"])
+def test_a_whole_file_without_a_final_newline_loads(seed_file, text):
+    store = WaypointStore(seed_file)
+    seed_file.write_text(text)
+    assert store.problem is None
+    expected = [w.name for w in WaypointStore(seed_file).all()]
+    assert [w.name for w in store.all()] == expected
+    store.put(make_waypoint("porch", 1, 1, 1))
+    assert [w.name for w in WaypointStore(seed_file).all()] == expected + ["porch"]
+
+
+def test_the_seed_minus_its_last_newline_loads_at_start_up(seed_file):
+    WaypointStore(seed_file).put(make_waypoint("dock", 0.0, 0.0, 0.0))  # a .bak of 3: the reference at start
+    seed_file.write_text(SEED.rstrip("\n"))
+    store = WaypointStore(seed_file)
+    assert store.problem is None and [w.name for w in store.all()] == ["kitchen", "office", "dock"]
+
+
+@pytest.mark.parametrize("text", [
+    "waypoints:\n  kitchen: [1.23, 4.56, 0.79]\n  office:\n    x: 5.67\n    y: 2.34\n    yaw: -1.",
+    "waypoints:\n  kitchen: [1.23, 4.56, 0.79]\n  office: {x: 5.67, y: 2.34, yaw: -1.",
+    "waypoints:\n  kitchen: [1.23, 4.56, 0.79]\n  office: [5.67, 2.34, -1.",
+])
+def test_a_file_stopping_inside_its_last_entry_is_still_cut_short(seed_file, text):
+    store = WaypointStore(seed_file)
+    seed_file.write_text(text)
+    assert [w.name for w in store.all()] == ["kitchen", "office", "dock"] and store.problem
+    with pytest.raises(WaypointFileError):
+        store.put(make_waypoint("porch", 1, 1, 1))
+    assert seed_file.read_text() == text

@@ -45,7 +45,8 @@ CUT_SHORT = [
     pytest.param("waypoints:\n", id="cut-after-the-key"),
     pytest.param("# waypoints\n", id="comment-only"),
     pytest.param(SEED[: SEED.index("-1.57") + 4], id="cut-mid-number"),
-    pytest.param(SEED[: SEED.index("  office") - 1], id="cut-at-the-end-of-a-line"),
+    pytest.param("waypoints:\n  kitchen: [1.23, 4.56, 0.79]\n  office:\n    x: 5.67\n    y: 2.34\n    yaw: -1.",
+                 id="cut-mid-number-of-a-block-entry"),  # parses (yaw -1.0): judged cut by where it stops
     pytest.param("waypoints:\n  kitchen: [1.23, 4.", id="cut-mid-entry"),
 ]
 

@@ -7,6 +7,7 @@ turns whatever the parser raises into :class:`Unreadable`, and says *where* and 
 secret must not show its lines in an API answer or the log. Pure: PyYAML only.
 """
 
+import collections
 import collections.abc
 import re
 
@@ -72,9 +73,15 @@ def _construct_mapping(loader, node, deep=False):
 _GuardedLoader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, _construct_mapping)
 
 
+class Document(collections.namedtuple("Document", "data lines open_end")):
+    """A file's YAML: ``data`` (None if empty); ``lines``, ``{key path: line}`` of the keys two levels
+    deep (``("waypoints",)``, ``("waypoints", "kitchen")``); ``open_end``, True when the text stops
+    right after a bare value (``yaw: -0.5``, no newline, bracket or comment after it), which a write
+    cut short could have ended mid-number (``-0.``) and still parse."""
+
+
 def load(text):
-    """``(data, lines)`` of ``text``: the document (None if empty) and ``{key path: line}`` of its keys
-    two levels deep (``("waypoints",)``, ``("waypoints", "kitchen")``); Unreadable otherwise."""
+    """The :class:`Document` of ``text``; Unreadable when it is not YAML this reader takes."""
     try:
         return _compose_and_construct(text)
     except yaml.YAMLError as exc:
@@ -88,9 +95,18 @@ def _compose_and_construct(text):
     try:
         node = loader.get_single_node()
         lines = _key_lines(loader, node)
-        return (loader.construct_document(node) if node is not None else None), lines
+        data = loader.construct_document(node) if node is not None else None
+        return Document(data, lines, _ends_open(text, node))
     finally:
         loader.dispose()
+
+
+def _ends_open(text, node):
+    if text.endswith("\n"):
+        return False
+    while isinstance(node, (yaml.MappingNode, yaml.SequenceNode)) and node.value:
+        node = node.value[-1][1] if isinstance(node, yaml.MappingNode) else node.value[-1]
+    return isinstance(node, yaml.ScalarNode) and node.style is None and node.end_mark.index >= len(text.rstrip())
 
 
 def _key_lines(loader, node, path=(), depth=2):

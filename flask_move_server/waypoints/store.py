@@ -210,19 +210,23 @@ def _why_lost(text, entries, loaded):
     """Why a file holding no or cut-short waypoints is not a deliberate deletion, or None.
 
     Only ``waypoints: {}`` deletes everything on purpose. An empty file, one
-    without ``waypoints:`` or one not ending with the newline every save and
-    editor writes is what an in-place write in progress (or a failed
-    ``printf > file``) looks like. A missing file counts once one was loaded:
-    some editors remove the file for a moment while saving.
+    without ``waypoints:``, or one stopping right after a bare number (which
+    could be cut mid-number) is what an in-place write in progress (or a failed
+    ``printf > file``) looks like. Truncation is judged by the structure, not by
+    a final newline, which some editors (VS Code, Notepad) do not write: a file
+    that parses and ends with a closed entry (``[x, y, yaw]``) is whole. A
+    missing file counts once one was loaded: some editors remove the file for a
+    moment while saving.
     """
     if text is None:
         return "is missing" if loaded else None
     if not text.strip():
         return "is empty"
-    if not text.endswith("\n"):
-        return "does not end with a newline, so it looks cut short (a write in progress or interrupted)"
     if entries is None:
         return "holds no waypoints and does not say 'waypoints: {}'"
+    if entries.open_end:
+        return ("stops right after a number with no newline, so it looks cut short (a write in progress or "
+                "interrupted); end the file with a newline")
     return None
 
 

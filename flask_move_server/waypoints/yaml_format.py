@@ -33,11 +33,13 @@ _BOUNDS = (("x", POSITION_LIMIT), ("y", POSITION_LIMIT), ("yaw", YAW_LIMIT))
 
 
 class Entries(dict):
-    """The raw ``waypoints:`` mapping, knowing the line each name is on (for errors)."""
+    """The raw ``waypoints:`` mapping, knowing the line each name is on (for errors) and whether the
+    text ended open, right after a bare value (``safe_yaml.Document.open_end``)."""
 
-    def __init__(self, entries, lines):
+    def __init__(self, entries, lines, open_end=False):
         super().__init__(entries)
         self.lines = lines
+        self.open_end = open_end
 
     def where(self, name):
         line = self.lines.get(("waypoints", name))
@@ -52,7 +54,7 @@ def parse(text, source="waypoints"):
 def entries_of(text, source="waypoints"):
     """The raw ``waypoints:`` mapping of the file's text (an :class:`Entries`); None when blank or not given."""
     try:
-        data, lines = safe_yaml.load(text)
+        data, lines, open_end = safe_yaml.load(text)
     except safe_yaml.Unreadable as exc:
         raise WaypointFileError("{} is not valid YAML: {}".format(source, exc))
     if data is None:
@@ -65,7 +67,7 @@ def entries_of(text, source="waypoints"):
     if not isinstance(entries, dict):
         raise WaypointFileError("{}, line {}: 'waypoints' must map names to [x, y, yaw]".format(
             source, lines.get(("waypoints",), 1)))
-    return Entries(entries, lines)
+    return Entries(entries, lines, open_end)
 
 
 def waypoints_of(entries, source):
