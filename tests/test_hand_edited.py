@@ -286,3 +286,34 @@ def test_a_file_stopping_inside_its_last_entry_is_still_cut_short(seed_file, tex
     with pytest.raises(WaypointFileError):
         store.put(make_waypoint("porch", 1, 1, 1))
     assert seed_file.read_text() == text
+
+
+# 7. a save drops the owner's comments: said, and the original kept as the .bak -------------------------
+
+COMMENTED = ("# Waypoints of the flat, measured 2026-11-20\n" + SEED
+             + "  # the porch is not mapped yet\n")
+
+
+def test_the_save_that_drops_comments_keeps_the_original_as_bak_and_says_so(seed_file, caplog):
+    seed_file.write_text(COMMENTED)
+    store = WaypointStore(seed_file)
+    with caplog.at_level(logging.WARNING):
+        store.put(make_waypoint("porch", 1, 1, 1))
+    assert "#" not in seed_file.read_text()
+    assert (seed_file.parent / "waypoints.yaml.bak").read_text() == COMMENTED
+    said = _said(caplog, "dropped the comments")
+    assert len(said) == 1 and str(seed_file) + ".bak" in said[0].getMessage()
+    assert "Waypoints of the flat" not in said[0].getMessage()
+    caplog.clear()
+    with caplog.at_level(logging.WARNING):
+        store.put(make_waypoint("garage", 2, 2, 2))  # nothing left to drop: nothing said
+    assert not _said(caplog, "dropped the comments")
+
+
+def test_a_put_over_the_api_on_a_commented_file_keeps_it_as_bak(client, robot_config, caplog):
+    with open(robot_config.waypoints.file, "w") as f:
+        f.write(COMMENTED)
+    with caplog.at_level(logging.WARNING):
+        assert client.put("/waypoints/porch", json={"x": 1, "y": 2, "yaw": 0}).status_code == 201
+    assert open(robot_config.waypoints.file + ".bak").read() == COMMENTED
+    assert len(_said(caplog, "dropped the comments")) == 1

@@ -8,7 +8,9 @@ before the next read or write instead of being overwritten. A file that would si
 the last good waypoints (empty, cut short, no ``waypoints:``) is a problem to report, not a
 deletion: only ``waypoints: {}`` clears them. A broken file, at start-up too, is served as the
 last good set (none before one loaded) with :attr:`~WaypointStore.problem` saying why, logged
-once per version of the file, and refuses changes until fixed. The file plumbing lives in
+once per version of the file, and refuses changes until fixed. A save writes the seed format
+afresh, so comments written by hand are dropped: the save that drops them leaves the file as
+it was in ``.bak`` (as every save does) and says so in the log. The file plumbing lives in
 :mod:`flask_move_server.waypoints.locked_file`, the format in
 :mod:`flask_move_server.waypoints.yaml_format`. Pure: no rospy, no Flask.
 """
@@ -203,6 +205,10 @@ class WaypointStore:
             waypoints_file.atomic_write(self.path, text, backup_text=self._good_text)
         except OSError as exc:
             raise WaypointFileError("cannot save {}: {}; nothing was changed".format(self.path, exc.strerror or exc))
+        if _has_comments(self._good_text):
+            log.warning("saving %s dropped the comments written in it by hand (a save writes the seed format "
+                        "afresh); the file as it was, comments and all, is %s.bak until the next change: copy "
+                        "it to keep it", self.path, self.path)
         self._stamp, self._good_text = waypoints_file.stamp(self.path), text
 
 
@@ -228,6 +234,11 @@ def _why_lost(text, entries, loaded):
         return ("stops right after a number with no newline, so it looks cut short (a write in progress or "
                 "interrupted); end the file with a newline")
     return None
+
+
+def _has_comments(text):
+    """Whether a loaded file's ``text`` holds comments: no name or number may hold '#', so each starts one."""
+    return text is not None and "#" in text
 
 
 def _restore_hint(path):
