@@ -3,7 +3,21 @@
 Every error a user can cause or meet derives from :class:`MoveServerError` and
 carries a short machine-readable ``code``. ``web/error_handlers.py`` maps each class to
 an HTTP status in one place; the CLI maps :class:`ConfigError` to exit status 2.
+A name or value a message quotes back goes through :func:`shown`, so it is never echoed whole.
 """
+
+import json
+
+SHOWN = 64  # characters of a name or value an error quotes back (the longest valid name)
+
+
+def shown(value, limit=SHOWN):
+    """``value`` as an error quotes it, in JSON (text quoted, control characters escaped), cut to
+    ``limit`` characters and '…': a 100 KB name sent is not a 100 KB answer, nor log line."""
+    if isinstance(value, str):
+        return json.dumps(value[:limit]) + ("\u2026" if len(value) > limit else "")
+    text = json.dumps(value, default=repr)
+    return text if len(text) <= limit else text[:limit] + "\u2026"
 
 
 class MoveServerError(Exception):
@@ -51,7 +65,7 @@ class UnknownWaypoint(MoveServerError, KeyError):
     def __init__(self, name, suggestions=()):
         self.name = name
         self.suggestions = list(suggestions)
-        message = "No waypoint named {!r}.".format(name)
+        message = "No waypoint named {!r}{}.".format(str(name)[:SHOWN], "\u2026" if len(str(name)) > SHOWN else "")
         if self.suggestions:
             message += " Did you mean: {}?".format(", ".join(repr(s) for s in self.suggestions))
         else:

@@ -1,6 +1,8 @@
 """The mode manager: one switch at a time, failures said, crashes restarted, the mode remembered."""
 
 import json
+import logging
+import os
 
 import pytest
 
@@ -243,14 +245,20 @@ def test_restore_comes_back_to_the_remembered_mode(cfg):
 
 
 @pytest.mark.parametrize("kind, expected", [("sim", ("navigation", None)), ("roslaunch", ("idle", None))])
-@pytest.mark.parametrize("state_text", [None, "{not json", '{"mode": "dancing"}', '["idle"]'],
-                         ids=["missing", "broken", "unknown mode", "not an object"])
-def test_restore_without_a_usable_state_file_starts_the_default(cfg, kind, expected, state_text):
+@pytest.mark.parametrize("state_text", [None, "{not json", '{"mode": "dancing"}', '["idle"]', "[" * 5000 + "]" * 5000,
+                                        '{"mode": ' * 3000 + "1" + "}" * 3000],
+                         ids=["missing", "broken", "unknown mode", "not an object", "deep list", "deep object"])
+def test_restore_without_a_usable_state_file_starts_the_default(cfg, kind, expected, state_text, caplog):
     cfg.modes.stack = kind
-    status, starts = _restored(cfg, state_text)
+    with caplog.at_level(logging.INFO, logger="flask_move_server.modes"):
+        status, starts = _restored(cfg, state_text)
     assert (status["mode"], status["map"]) == expected and status["state"] == "running"
     if kind == "roslaunch":
         assert "mapping" in status["message"] and starts == []
+    said = [r for r in caplog.records if "starting the default" in r.getMessage()]
+    assert len(said) == 1 and len(said[0].getMessage()) < 500
+    if state_text is not None:  # broken: a warning naming the file and why
+        assert said[0].levelno == logging.WARNING and cfg.mode_state_file() in said[0].getMessage()
 
 
 def test_a_robot_upgraded_with_its_map_saved_as_map_navigates_on_it(cfg):
@@ -383,3 +391,19 @@ def test_a_failure_quoting_a_huge_value_is_cut_in_every_status(robot_config):
     finally:
         manager.close()
     assert status["message"].startswith("origin: must be") and len(status["message"]) <= MESSAGE_LIMIT
+
+
+def test_a_mode_that_cannot_be_remembered_says_so_until_one_is(cfg, harness):
+    os.mkdir(cfg.mode_state_file())  # a folder where mode.json goes: it cannot be written, even as root
+    harness.modes.switch("mapping")
+    assert harness.modes.wait(5)
+    running = harness.modes.status()["message"]
+    assert "not remembered for the next start: cannot write {}".format(cfg.mode_state_file()) in running
+    assert running.startswith("running")  # what the mode says first, the problem after it
+    assert "not remembered" in harness.modes.switch("idle")["message"]  # the next switch's 202 says it too
+    assert harness.modes.wait(5)
+    os.rmdir(cfg.mode_state_file())
+    harness.modes.switch("mapping")
+    assert harness.modes.wait(5)
+    assert "not remembered" not in harness.modes.status()["message"]
+    assert json.load(open(cfg.mode_state_file())) == {"mode": "mapping", "map": None}

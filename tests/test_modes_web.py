@@ -5,6 +5,8 @@ stand-in of tests/modes_standin.py and the robot the fake one; what the real sta
 backends' tests'.
 """
 
+import os
+
 import pytest
 
 from flask_move_server.events import EventBus
@@ -156,3 +158,10 @@ def test_a_goal_while_idle_says_to_start_navigation_not_roslaunch(robot_config, 
     assert r.get_json()["message"].startswith("The robot is idle") and "robotctl map use" in r.get_json()["message"]
     assert "roslaunch" not in r.get_json()["message"]
 
+
+
+def test_a_mode_that_cannot_be_remembered_is_said_by_post_and_get_mode(client, robot_config):
+    os.mkdir(robot_config.mode_state_file())  # mode.json cannot be written (a folder in its place)
+    body = client.post("/mode", json={"mode": "mapping", "wait": 5}).get_json()
+    assert body["state"] == "running" and "not remembered for the next start" in body["message"]
+    assert "not remembered for the next start" in client.get("/mode").get_json()["message"]

@@ -102,7 +102,7 @@ def test_coordinates_are_bounded_a_yaw_more_tightly():
     ("waypoints: [1, 2]\n", "must map names"),
     ("waypoints:\n  a: [1, 2]\n", "expected [x, y, yaw]"),
     ("waypoints:\n  a: [1, 2, .nan]\n", "finite"),
-    ("waypoints:\n  a: [1.0e+308, 2, 3]\n", "x must be between -1000000 and 1000000"),
+    ("waypoints:\n  a: [1.0e+308, 2, 3]\n", "line 2: x must be a finite number between -1000000 and 1000000"),
     ("waypoints:\n  '.': [1, 2, 3]\n", "Invalid waypoint name"),
     ("waypoints:\n  a: [1, 2, 3]\n  a: [4, 5, 6]\n", "appears twice"),
     ("waypoints:\n  'a/b': [1, 2, 3]\n", "Invalid waypoint name"),
@@ -112,10 +112,13 @@ def test_coordinates_are_bounded_a_yaw_more_tightly():
 def test_a_broken_file_is_reported_with_the_reason(tmp_path, text, problem):
     path = tmp_path / "w.yaml"
     path.write_text(text)
+    store = WaypointStore(path)  # served as none with the reason, never a server that cannot start
+    assert store.all() == [] and problem in store.problem and str(path) in store.problem
     with pytest.raises(WaypointFileError) as err:
-        WaypointStore(path)
+        store.put(make_waypoint("porch", 1, 1, 1))
     assert problem in str(err.value)
     assert str(path) in str(err.value)
+    assert path.read_text() == text
 
 
 names = st.from_regex(r"[A-Za-z0-9_-][A-Za-z0-9_. -]{0,62}[A-Za-z0-9_-]", fullmatch=True).filter(

@@ -4,7 +4,8 @@ A switch is checked at once (unknown map → UnknownMap before anything is stopp
 in a background thread: the running stack is stopped (state ``stopping``), the new one
 started (``starting``), and the mode is ``running`` or ``failed`` with the backend's message.
 Every state change is published as a ``mode`` event carrying the ``GET /mode`` body, and a
-mode that reached ``running`` is remembered in ``Config.mode_state_file()`` for the next start.
+mode that reached ``running`` is remembered in ``Config.mode_state_file()`` for the next start;
+while that file cannot be written, every status's message says so (``unsaved``).
 
 A stack that dies by itself (the backend calls ``on_exit``) is restarted as ``modes/restarts.py``
 allows (up to ``modes.restarts`` times, after 1, 2 then 4 s; a long run forgives earlier
@@ -60,6 +61,7 @@ class ModeManager:
         self._closed = False
         self._up = False  # the backend may have a stack running (stop it before the next start)
         self.restart_budget = RestartBudget(config.modes, clock)
+        self._unsaved = None  # why the last mode could not be remembered, said in every message until one is
         # Until restore(): idle with nothing started; without a backend, the outside stack's navigation.
         self._target = Target("idle") if backend else Target("navigation")
         self._status = self._body(self._target, "running", IDLE if backend else OUTSIDE)
@@ -195,14 +197,22 @@ class ModeManager:
 
     def _running(self, gen, target, message):
         """Remember ``target`` for the next start, then say it runs (a waiter finds it remembered)."""
-        try:
-            state_file.save(self._config.mode_state_file(), target.mode, target.map)
-        except OSError as exc:
-            log.warning("cannot remember the mode in %s: %s", self._config.mode_state_file(), exc)
+        unsaved = self._remember(target)
         with self._changed:
+            self._unsaved = unsaved
             self.restart_budget.running()
             self._set(target, "running", message)
             self._release(gen)  # in the same breath: a crash from now on is this run's
+
+    def _remember(self, target):
+        """Save ``target`` as the mode to come back to; None, or why it could not be (for the messages)."""
+        path = self._config.mode_state_file()
+        try:
+            state_file.save(path, target.mode, target.map)
+        except OSError as exc:
+            log.warning("cannot remember the mode in %s: %s", path, exc)
+            return "not remembered for the next start: cannot write {} ({})".format(path, exc.strerror or exc)
+        return None
 
     def _release(self, gen):
         """Under the lock: switch ``gen`` is over (unless a newer one owns the manager already)."""
@@ -232,10 +242,11 @@ class ModeManager:
         if self._events is not None:
             self._events.publish("mode", dict(self._status))
 
-    @staticmethod
-    def _body(target, state, message):
-        return {"mode": target.mode, "map": target.map, "state": state, "since": _now_iso(),
-                "message": _bounded(message)}
+    def _body(self, target, state, message):
+        message = _bounded(message)
+        if self._unsaved:
+            message = "{}; {}".format(message, self._unsaved) if message else self._unsaved
+        return {"mode": target.mode, "map": target.map, "state": state, "since": _now_iso(), "message": message}
 
     # crashes ---------------------------------------------------------------
 

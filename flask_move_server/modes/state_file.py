@@ -2,8 +2,9 @@
 
 Written atomically (temporary file, fsync, rename, fsync of the folder: the waypoints
 file's plumbing), so a power cut leaves the old or the new choice, never half of one.
-Reading never raises: a missing or broken file means "no choice remembered", and the
-reason is returned for the log. Pure: no rospy, no Flask.
+Reading never raises: a missing or broken file (any parse failure: bad JSON, 5,000 nested
+brackets) means "no choice remembered", and the reason is returned for the log. Pure: no
+rospy, no Flask.
 """
 
 import json
@@ -23,15 +24,17 @@ def save(path, mode, map_name):
 
 
 def load(path):
-    """``((mode, map), None)`` as remembered, or ``(None, reason)`` when there is nothing usable."""
+    """``((mode, map), None)`` as remembered; ``(None, reason)`` when the file is broken; ``(None, None)`` if none."""
     try:
         text = waypoints_file.read(path)
     except WaypointFileError as exc:
         return None, str(exc)
     if text is None:
-        return None, "no {} yet".format(path)
+        return None, None
     try:
         data = json.loads(text)
+    except RecursionError:
+        return None, "{} is not valid JSON: nested too deeply".format(path)
     except ValueError as exc:
         return None, "{} is not valid JSON: {}".format(path, exc)
     if not isinstance(data, dict) or data.get("mode") not in MODES:

@@ -10,7 +10,7 @@ import os
 from dataclasses import dataclass
 from typing import Optional
 
-from flask_move_server.errors import BadMapName, BadRequest, UnknownMap
+from flask_move_server.errors import BadMapName, BadRequest, UnknownMap, shown
 from flask_move_server.geometry import Pose2D
 from flask_move_server.modes import relocalizing
 
@@ -70,7 +70,7 @@ class Targets:
     def of(self, mode, map_name=None, pose=None):
         """The Target of a request; BadRequest, BadMapName, UnknownMap (and the pose's errors) refuse."""
         if mode not in MODES:
-            raise BadRequest("Unknown mode {!r}: use one of {}.".format(mode, ", ".join(MODES)))
+            raise BadRequest("Unknown mode {}: use one of {}.".format(shown(mode), ", ".join(MODES)))
         if mode != "navigation" and (map_name is not None or pose is not None):
             raise BadRequest("Only the navigation mode takes a 'map' and a 'pose'.")
         yaml_path = None
@@ -96,7 +96,10 @@ class Targets:
     def remembered(self, remembered, reason):
         """Where to come back to at start-up, from ``state_file.load``'s answer; never raises."""
         if remembered is None:
-            log.info("no mode to come back to (%s): starting the default", reason)
+            if reason:
+                log.warning("cannot come back to the mode before the restart: %s; starting the default", reason)
+            else:
+                log.info("no mode remembered yet: starting the default")
             target = default_target(self.config.stack_kind(), self.catalogue.exists(UPGRADED_MAP))
             return self.of(target.mode, target.map) if target.map else target
         mode, map_name = remembered

@@ -7,7 +7,7 @@ one writer when it answers; otherwise the file is written through the same
 + atomic save), so neither loses the other's edits.
 """
 
-from flask_move_server.errors import BadWaypoint, ClientError
+from flask_move_server.errors import BadWaypoint, ClientError, WaypointFileError
 from flask_move_server.robotctl.api import ExitStatus, RobotClient, waypoint_path
 from flask_move_server.waypoints import make_waypoint
 from flask_move_server.waypoints.store import WaypointStore
@@ -19,6 +19,8 @@ class FileSaver:
     def __init__(self, path):
         self.store = WaypointStore(path)
         self.where = "the file {}".format(self.store.path)
+        if self.store.problem:  # refused before the first click, not at every save
+            raise WaypointFileError("{}; fix it before recording".format(self.store.problem))
 
     def all(self):
         return self.store.all()

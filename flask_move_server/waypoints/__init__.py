@@ -7,12 +7,11 @@ coordinates are validated here once, for the HTTP API, the file and the recorder
 """
 
 import difflib
-import json
 import math
 import re
 from dataclasses import dataclass
 
-from flask_move_server.errors import BadWaypoint
+from flask_move_server.errors import BadWaypoint, shown
 
 NAME_RULE = ("1 to 64 letters, digits, '_', '-', '.' or spaces, not starting or ending with a space, "
              "without '..' and not '.' alone")
@@ -39,17 +38,17 @@ class Waypoint:
 def check_name(name):
     """Return ``name`` if it is a valid waypoint name, else raise BadWaypoint."""
     if not isinstance(name, str):
-        raise BadWaypoint("A waypoint name must be text, got {!r}.".format(name))
+        raise BadWaypoint("A waypoint name must be text, got {}.".format(shown(name)))
     # "." and ".." are path segments: clients drop them from a URL, so they could not be deleted.
     if not _NAME_RE.fullmatch(name) or name != name.strip(" ") or ".." in name or name == ".":
-        raise BadWaypoint("Invalid waypoint name {}: use {}.".format(json.dumps(name), NAME_RULE))
+        raise BadWaypoint("Invalid waypoint name {}: use {}.".format(shown(name), NAME_RULE))
     return name
 
 
 def check_coordinate(label, value, limit=POSITION_LIMIT):
     """Return ``value`` as a float if it is a finite number within ±``limit``, else raise BadWaypoint."""
     if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise BadWaypoint("{} must be a number, got {}.".format(label, json.dumps(value, default=repr)))
+        raise BadWaypoint("{} must be a number, got {}.".format(label, shown(value)))
     try:
         value = float(value)
     except OverflowError:  # an int too large for a float

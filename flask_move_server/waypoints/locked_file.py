@@ -4,17 +4,21 @@ Moved out of ``waypoints.py`` (issue 10) so that the model and format stay one
 concern and this one can grow the lock timeout and start-up clean-up. A save
 writes a temporary file in the same directory, fsyncs it, renames it over the
 file and fsyncs the directory, so a crash (even SIGKILL) leaves the old or the
-new file whole; the previous good version goes to ``<file>.bak`` first. An
+new file whole; the previous good version goes to ``<file>.bak`` first, the same
+way. Temporaries are new files of unique names, never opened through a link
+planted in the folder; the lock file must not be a link. An
 ``fcntl`` lock on ``<file>.lock`` serialises writers across processes, and is
 given up after a timeout instead of waiting forever on a stuck holder. Pure: no
 rospy, no Flask.
 """
 
 import contextlib
+import errno
 import fcntl
 import glob
 import logging
 import os
+import shlex
 import stat
 import tempfile
 import time
@@ -74,8 +78,12 @@ def file_lock(lock_path, timeout):
     suspended or stuck ``record-waypoints`` must not hang every save forever.
     """
     try:
-        fd = os.open(lock_path, os.O_RDWR | os.O_CREAT, 0o644)
+        fd = os.open(lock_path, os.O_RDWR | os.O_CREAT | os.O_NOFOLLOW, 0o644)
     except OSError as exc:
+        if exc.errno == errno.ELOOP:  # never create or open a file elsewhere through a planted link
+            raise WaypointFileError("cannot lock {}: it is a symbolic link, and the lock file must be a file "
+                                    "of its own; remove the link (rm {}) and try again".format(
+                                        lock_path, shlex.quote(lock_path)))
         raise WaypointFileError("cannot lock {}: {}".format(lock_path, exc.strerror))
     try:
         _acquire(fd, lock_path, timeout)
@@ -150,34 +158,52 @@ def atomic_write(path, text, backup_text=None):
 
     ``backup_text``, when given, becomes ``path.bak`` first: the caller passes
     the last good version it loaded, never what happens to be on disk now (a
-    hand edit in progress must not become the backup).
+    hand edit in progress must not become the backup). Nothing is written through
+    a symbolic link: each file is written to a new temporary one and renamed over
+    the name, so a link at ``path`` or ``path.bak`` is replaced, its target untouched.
     """
-    directory = os.path.dirname(path)
-    fd, tmp = tempfile.mkstemp(prefix=".{}.".format(os.path.basename(path)), suffix=".tmp", dir=directory)
+    mode = os.stat(path).st_mode & 0o7777 if os.path.exists(path) else new_file_mode()
+    tmp = _write_temporary(path, text, mode)  # first: a full disk fails the save before .bak changes
     try:
-        with os.fdopen(fd, "w", encoding="utf-8") as f:
-            f.write(text)
-            f.flush()
-            os.fsync(f.fileno())
-        os.chmod(tmp, os.stat(path).st_mode & 0o7777 if os.path.exists(path) else new_file_mode())
         if backup_text is not None:
-            _write_backup(path, backup_text)
+            _replace(path + ".bak", _write_temporary(path + ".bak", backup_text, mode))
+        _replace(path, tmp)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+        raise
+    fsync_dir(os.path.dirname(path))
+
+
+def _replace(path, tmp):
+    """Rename the whole file ``tmp`` over ``path`` (a link there is replaced); ``tmp`` removed if that fails."""
+    try:
         os.replace(tmp, path)
     except BaseException:
         with contextlib.suppress(OSError):
             os.unlink(tmp)
         raise
-    fsync_dir(directory)
 
 
-def _write_backup(path, text):
-    """Make ``path.bak`` hold ``text``, atomically (its own temp file, fsync, rename)."""
-    bak, tmp = path + ".bak", path + ".bak.tmp"
-    with open(tmp, "w", encoding="utf-8") as f:
-        f.write(text)
-        f.flush()
-        os.fsync(f.fileno())
-    os.replace(tmp, bak)
+def _write_temporary(path, text, mode):
+    """A new file beside ``path`` holding ``text``, synced; its name.
+
+    mkstemp opens a name of its own making with ``O_CREAT | O_EXCL | O_NOFOLLOW``: a
+    file or link planted in the folder is never opened, let alone written through.
+    """
+    fd, tmp = tempfile.mkstemp(prefix=".{}.".format(os.path.basename(path)), suffix=".tmp",
+                               dir=os.path.dirname(path))
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8") as f:
+            os.fchmod(f.fileno(), mode)
+            f.write(text)
+            f.flush()
+            os.fsync(f.fileno())
+    except BaseException:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+        raise
+    return tmp
 
 
 def leftovers(path):
@@ -185,7 +211,7 @@ def leftovers(path):
     directory, name = os.path.split(path)
     pattern = os.path.join(glob.escape(directory), ".{}.*.tmp".format(glob.escape(name)))
     found = glob.glob(pattern)
-    if os.path.exists(path + ".bak.tmp"):
+    if os.path.lexists(path + ".bak.tmp"):  # the fixed name saves used before issue 21 (a link: removed)
         found.append(path + ".bak.tmp")
     return sorted(found)
 

@@ -6,7 +6,11 @@ as ``.bak``), an ``fcntl`` lock serialises writers across processes (the server 
 ``record-waypoints``), and a change made on disk by someone else (a text editor) is picked up
 before the next read or write instead of being overwritten. A file that would silently lose
 the last good waypoints (empty, cut short, no ``waypoints:``) is a problem to report, not a
-deletion: only ``waypoints: {}`` clears them. The file plumbing lives in
+deletion: only ``waypoints: {}`` clears them. A broken file, at start-up too, is served as the
+last good set (none before one loaded) with :attr:`~WaypointStore.problem` saying why, logged
+once per version of the file, and refuses changes until fixed. A save writes the seed format
+afresh, so comments written by hand are dropped: the save that drops them leaves the file as
+it was in ``.bak`` (as every save does) and says so in the log. The file plumbing lives in
 :mod:`flask_move_server.waypoints.locked_file`, the format in
 :mod:`flask_move_server.waypoints.yaml_format`. Pure: no rospy, no Flask.
 """
@@ -46,7 +50,7 @@ class WaypointStore:
         self._listeners = []
         waypoints_file.remove_leftovers(self.path, lock_timeout)
         with self._lock:
-            self._refresh(strict=True)
+            self._refresh()  # a broken file is a problem to report, never a server that cannot start
 
     def use_file(self, path):
         """Serve the waypoints of ``path`` from now on (the active map's, or the single file).
@@ -165,8 +169,7 @@ class WaypointStore:
             text = waypoints_file.read(self.path)
             waypoints = self._load(text)
         except WaypointFileError as exc:
-            self._stamp, self._problem = stamp, str(exc)
-            log.error("%s; still using the %d waypoints loaded before", exc, len(self._waypoints))
+            self._broken(stamp, str(exc))
             if strict:
                 raise WaypointFileError(
                     "{}; nothing was changed. Fix the file,{} or write 'waypoints: {{}}' to it to delete every "
@@ -178,6 +181,14 @@ class WaypointStore:
             self.version += 1
         self._waypoints, self._good_text, self._loaded = waypoints, text, True
         self._stamp, self._problem = stamp, None
+
+    def _broken(self, stamp, problem):
+        """Remember why the file cannot be loaded: logged once per version of the file, not per request."""
+        if (stamp, problem) != (self._stamp, self._problem):
+            serving = ("still serving the {} waypoints loaded before".format(len(self._waypoints)) if self._loaded
+                       else "serving no waypoints until it is fixed")
+            log.error("%s; %s", problem, serving)
+        self._stamp, self._problem = stamp, problem
 
     def _load(self, text):
         """The waypoints of ``text``, or WaypointFileError when it is broken or would lose the last good set."""
@@ -194,6 +205,10 @@ class WaypointStore:
             waypoints_file.atomic_write(self.path, text, backup_text=self._good_text)
         except OSError as exc:
             raise WaypointFileError("cannot save {}: {}; nothing was changed".format(self.path, exc.strerror or exc))
+        if _has_comments(self._good_text):
+            log.warning("saving %s dropped the comments written in it by hand (a save writes the seed format "
+                        "afresh); the file as it was, comments and all, is %s.bak until the next change: copy "
+                        "it to keep it", self.path, self.path)
         self._stamp, self._good_text = waypoints_file.stamp(self.path), text
 
 
@@ -201,20 +216,29 @@ def _why_lost(text, entries, loaded):
     """Why a file holding no or cut-short waypoints is not a deliberate deletion, or None.
 
     Only ``waypoints: {}`` deletes everything on purpose. An empty file, one
-    without ``waypoints:`` or one not ending with the newline every save and
-    editor writes is what an in-place write in progress (or a failed
-    ``printf > file``) looks like. A missing file counts once one was loaded:
-    some editors remove the file for a moment while saving.
+    without ``waypoints:``, or one stopping right after a bare number (which
+    could be cut mid-number) is what an in-place write in progress (or a failed
+    ``printf > file``) looks like. Truncation is judged by the structure, not by
+    a final newline, which some editors (VS Code, Notepad) do not write: a file
+    that parses and ends with a closed entry (``[x, y, yaw]``) is whole. A
+    missing file counts once one was loaded: some editors remove the file for a
+    moment while saving.
     """
     if text is None:
         return "is missing" if loaded else None
     if not text.strip():
         return "is empty"
-    if not text.endswith("\n"):
-        return "does not end with a newline, so it looks cut short (a write in progress or interrupted)"
     if entries is None:
         return "holds no waypoints and does not say 'waypoints: {}'"
+    if entries.open_end:
+        return ("stops right after a number with no newline, so it looks cut short (a write in progress or "
+                "interrupted); end the file with a newline")
     return None
+
+
+def _has_comments(text):
+    """Whether a loaded file's ``text`` holds comments: no name or number may hold '#', so each starts one."""
+    return text is not None and "#" in text
 
 
 def _restore_hint(path):

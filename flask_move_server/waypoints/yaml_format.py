@@ -5,9 +5,11 @@ The format is the mapping guide's::
     waypoints:
       kitchen: [1.23, 4.56, 0.79]     # x [m], y [m], yaw [rad] in the map frame
 
-(``{x: .., y: .., yaw: ..}`` per entry loads too). A name given twice is an error, and so are
-anchors and aliases (a few hundred bytes could expand to megabytes). :func:`dump` writes the
-seed format back, with numbers PyYAML reads as floats. Pure: PyYAML only.
+(``{x: .., y: .., yaw: ..}`` per entry loads too). The text is read by
+:mod:`~flask_move_server.waypoints.safe_yaml` (a name given twice, anchors, aliases and deep
+nesting refused); whatever makes a file unreadable is a :class:`WaypointFileError` saying the
+line and what is wrong, never the file's text. :func:`dump` writes the seed format back, with
+numbers PyYAML reads as floats. Pure: PyYAML only.
 """
 
 import json
@@ -16,46 +18,32 @@ import re
 import yaml
 
 from flask_move_server.errors import BadWaypoint, WaypointFileError
-from flask_move_server.waypoints import make_waypoint
+from flask_move_server.waypoints import (
+    NAME_RULE,
+    POSITION_LIMIT,
+    YAW_LIMIT,
+    Waypoint,
+    check_coordinate,
+    check_name,
+    safe_yaml,
+)
 
 _PLAIN_KEY_RE = re.compile(r"[A-Za-z_][A-Za-z0-9_-]*")
-MAX_QUOTED = 300  # characters of the file an error message may quote
+_BOUNDS = (("x", POSITION_LIMIT), ("y", POSITION_LIMIT), ("yaw", YAW_LIMIT))
 
 
-class _UniqueKeyLoader(yaml.SafeLoader):
-    """SafeLoader that rejects a name given twice, and any anchor or alias.
+class Entries(dict):
+    """The raw ``waypoints:`` mapping, knowing the line each name is on (for errors) and whether the
+    text ended open, right after a bare value (``safe_yaml.Document.open_end``)."""
 
-    Aliases let a few hundred bytes expand to megabytes (in memory, in error
-    messages, in /status); a waypoints file has no use for them.
-    """
+    def __init__(self, entries, lines, open_end=False):
+        super().__init__(entries)
+        self.lines = lines
+        self.open_end = open_end
 
-    def compose_node(self, parent, index):
-        event = self.peek_event()
-        if isinstance(event, yaml.AliasEvent) or getattr(event, "anchor", None) is not None:
-            raise yaml.composer.ComposerError(
-                None, None, "anchors and aliases ('&', '*') are not allowed in a waypoints file", event.start_mark
-            )
-        return super().compose_node(parent, index)
-
-
-def _construct_mapping(loader, node, deep=False):
-    seen = set()
-    for key_node, _ in node.value:
-        key = loader.construct_object(key_node, deep=deep)
-        if key in seen:
-            raise yaml.constructor.ConstructorError(
-                None, None, "{!r} appears twice".format(key), key_node.start_mark
-            )
-        seen.add(key)
-    return yaml.SafeLoader.construct_mapping(loader, node, deep)
-
-
-_UniqueKeyLoader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, _construct_mapping)
-
-
-def _shorten(text, limit=MAX_QUOTED):
-    """``text`` cut to ``limit`` characters: an error quoting the file stays readable."""
-    return text if len(text) <= limit else text[: limit - 1] + "\u2026"
+    def where(self, name):
+        line = self.lines.get(("waypoints", name))
+        return ", line {}".format(line) if line else ""
 
 
 def parse(text, source="waypoints"):
@@ -64,39 +52,54 @@ def parse(text, source="waypoints"):
 
 
 def entries_of(text, source="waypoints"):
-    """The raw ``waypoints:`` mapping of the file's text; None when blank or not given."""
+    """The raw ``waypoints:`` mapping of the file's text (an :class:`Entries`); None when blank or not given."""
     try:
-        data = yaml.load(text, Loader=_UniqueKeyLoader)  # noqa: S506 - a SafeLoader subclass
-    except yaml.YAMLError as exc:
-        raise WaypointFileError("{} is not valid YAML: {}".format(source, _shorten(" ".join(str(exc).split()))))
+        data, lines, open_end = safe_yaml.load(text)
+    except safe_yaml.Unreadable as exc:
+        raise WaypointFileError("{} is not valid YAML: {}".format(source, exc))
     if data is None:
         return None
     if not isinstance(data, dict) or set(data) - {"waypoints"}:
         raise WaypointFileError("{} must hold one mapping, 'waypoints: {{name: [x, y, yaw]}}'".format(source))
     entries = data.get("waypoints")
-    if entries is not None and not isinstance(entries, dict):
-        raise WaypointFileError("{}: 'waypoints' must map names to [x, y, yaw]".format(source))
-    return entries
+    if entries is None:
+        return None
+    if not isinstance(entries, dict):
+        raise WaypointFileError("{}, line {}: 'waypoints' must map names to [x, y, yaw]".format(
+            source, lines.get(("waypoints",), 1)))
+    return Entries(entries, lines, open_end)
 
 
 def waypoints_of(entries, source):
-    """``{name: Waypoint}`` of a raw ``waypoints:`` mapping; WaypointFileError naming the bad entry."""
+    """``{name: Waypoint}`` of a raw ``waypoints:`` mapping; WaypointFileError saying the bad entry's line."""
     waypoints = {}
     for name, entry in (entries or {}).items():
         try:
             waypoints[name] = _entry(name, entry)
         except BadWaypoint as exc:
-            raise WaypointFileError(_shorten("{}: waypoint {!r}: {}".format(source, name, exc), 2 * MAX_QUOTED))
+            where = entries.where(name) if isinstance(entries, Entries) else ""
+            raise WaypointFileError("{}{}: {}".format(source, where, exc))
     return waypoints
 
 
 def _entry(name, entry):
-    if isinstance(entry, (list, tuple)) and len(entry) == 3:
-        return make_waypoint(name, *entry)
+    """The Waypoint of one entry; BadWaypoint saying what is wrong without quoting it (the file's text)."""
+    try:
+        check_name(name)
+    except BadWaypoint:
+        raise BadWaypoint("Invalid waypoint name: use {}.".format(NAME_RULE))
     if isinstance(entry, dict) and set(entry) == {"x", "y", "yaw"}:
-        return make_waypoint(name, entry["x"], entry["y"], entry["yaw"])
-    got = _shorten(json.dumps(entry, default=repr))
-    raise BadWaypoint("expected [x, y, yaw] or {x: .., y: .., yaw: ..}, got " + got)
+        entry = [entry["x"], entry["y"], entry["yaw"]]
+    if not isinstance(entry, list) or len(entry) != 3:
+        raise BadWaypoint("expected [x, y, yaw] or {x: .., y: .., yaw: ..}")
+    return Waypoint(name, *(_coordinate(label, limit, value) for (label, limit), value in zip(_BOUNDS, entry)))
+
+
+def _coordinate(label, limit, value):
+    try:
+        return check_coordinate(label, value, limit)
+    except BadWaypoint:
+        raise BadWaypoint("{} must be a finite number between {:.0f} and {:.0f}".format(label, -limit, limit))
 
 
 def dump(waypoints):

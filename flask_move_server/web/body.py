@@ -5,7 +5,7 @@ import math
 
 from flask import current_app, request
 
-from flask_move_server.errors import BadRequest, BodyTooLarge
+from flask_move_server.errors import BadRequest, BodyTooLarge, shown
 
 
 def _no_constants(name):
@@ -17,8 +17,7 @@ def _unique_keys(pairs):
     data = {}
     for key, value in pairs:
         if key in data:
-            raise BadRequest("The field {} appears twice in the body; send each field once.".format(
-                json.dumps(key)[:60]))
+            raise BadRequest("The field {} appears twice in the body; send each field once.".format(shown(key)))
         data[key] = value
     return data
 
@@ -47,7 +46,7 @@ def json_object(allowed, required=True):
     unknown = sorted(set(data) - set(allowed))
     if unknown:
         takes = "takes " + ", ".join(sorted(allowed)) if allowed else "takes no fields"
-        raise BadRequest("Unknown field {} (this endpoint {}).".format(json.dumps(unknown[0]), takes))
+        raise BadRequest("Unknown field {} (this endpoint {}).".format(shown(unknown[0]), takes))
     return data
 
 

@@ -10,7 +10,7 @@ import math
 
 from flask import Blueprint, current_app, jsonify, request
 
-from flask_move_server.errors import BadRequest
+from flask_move_server.errors import BadRequest, shown
 
 diagnostics_api = Blueprint("diagnostics", __name__)
 SECONDS = (0.5, 10.0)
@@ -21,7 +21,8 @@ YES, NO = ("1", "true", "yes"), ("0", "false", "no", "")
 def get_diagnostics():
     unknown = sorted(set(request.args) - {"seconds", "box"})
     if unknown:
-        raise BadRequest("Unknown query parameter {!r}: GET /diagnostics takes seconds and box.".format(unknown[0]))
+        raise BadRequest("Unknown query parameter {}: GET /diagnostics takes seconds and box.".format(
+            shown(unknown[0])))
     doctor = current_app.extensions["flask_move_server"]["doctor"]
     if doctor is None:
         raise BadRequest("The doctor is not part of this server.")

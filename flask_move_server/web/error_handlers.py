@@ -94,7 +94,7 @@ def init_app(app):
             message = _no_such_endpoint()
         allowed = sorted(set(getattr(exc, "valid_methods", None) or ()) - {"HEAD", "OPTIONS"})
         if exc.code == 405 and allowed:
-            message = "{} takes {}, not {}.".format(request.path, " or ".join(allowed), request.method)
+            message = "{} takes {}, not {}.".format(_shown_path(), " or ".join(allowed), request.method[:16])
         response = error_response(exc.code, code, message)
         if exc.code == 405 and exc.valid_methods:
             response.headers["Allow"] = ", ".join(exc.valid_methods)
@@ -106,7 +106,7 @@ def init_app(app):
         if not paths:
             tops = {"/" + rule.rule.split("/")[1] for rule in app.url_map.iter_rules()}
             paths.extend(sorted(tops - {"/", "/static"}))
-        shown = request.path if len(request.path) <= PATH_SHOWN else request.path[:PATH_SHOWN] + "…"
+        shown = _shown_path()
         meant = _without_trailing_slash()
         if meant:
             return "No such endpoint: {}. Did you mean {} (no slash at the end)?".format(shown, meant)
@@ -128,3 +128,8 @@ def init_app(app):
     def _unexpected(exc):
         log.exception("unexpected error serving a request")
         return error_response(500, "internal_error", "The server failed unexpectedly; its log has the details.")
+
+
+def _shown_path():
+    """The request's path as an error quotes it, cut to ``PATH_SHOWN`` characters."""
+    return request.path if len(request.path) <= PATH_SHOWN else request.path[:PATH_SHOWN] + "…"

@@ -8,7 +8,7 @@ or the stack's error (503 ``stack_failed``) when it failed.
 
 from flask import Blueprint, current_app, jsonify
 
-from flask_move_server.errors import BadRequest
+from flask_move_server.errors import BadRequest, shown
 from flask_move_server.geometry import Pose2D
 from flask_move_server.waypoints import YAW_LIMIT, check_coordinate
 from flask_move_server.web.body import json_object, number, text
@@ -62,7 +62,7 @@ def _switch_pose(value):
 def _pose_of(data, by_name):
     unknown = sorted(set(data) - set(POSE_FIELDS))
     if unknown:
-        raise BadRequest("Unknown pose field {!r}: give x, y, yaw or a waypoint's name.".format(unknown[0]))
+        raise BadRequest("Unknown pose field {}: give x, y, yaw or a waypoint's name.".format(shown(unknown[0])))
     if "name" in data:
         if any(k in data for k in ("x", "y", "yaw")):
             raise BadRequest("Give either a waypoint 'name' or 'x', 'y', 'yaw', not both.")
