@@ -15,19 +15,30 @@ rename and a save. Pure: no rospy, no Flask.
 """
 
 import datetime
+import logging
 import os
 import threading
 from dataclasses import dataclass
 
-import yaml
-
-from flask_move_server.errors import BadMapName, BadWaypoint, ConfigError, MapExists, MapFileError, MapInUse, UnknownMap
+from flask_move_server import bounded_yaml
+from flask_move_server.errors import (
+    BadMapName,
+    BadWaypoint,
+    ConfigError,
+    MapExists,
+    MapFileError,
+    MapInUse,
+    UnknownMap,
+    shown,
+)
 from flask_move_server.maps import mapfile
+from flask_move_server.maps.file_cache import FileVersionCache
 from flask_move_server.sim import occupancy
 from flask_move_server.waypoints import NAME_RULE, check_name, suggest
 from flask_move_server.waypoints import locked_file as waypoints_file
 from flask_move_server.waypoints.yaml_format import entries_of
 
+log = logging.getLogger(__name__)
 WAYPOINTS_SUFFIX = ".waypoints.yaml"
 MAP_NAME_RULE = NAME_RULE + ", not starting with '.' and not ending in '.waypoints'"
 
@@ -70,6 +81,8 @@ class MapCatalogue:
     def __init__(self, folder):
         self.folder = os.path.abspath(folder)
         self._lock = threading.Lock()
+        self._facts = FileVersionCache()  # each map's YAML and image header, read once per version
+        self._counts = FileVersionCache()  # each map's number of waypoints
 
     # paths ----------------------------------------------------------------
 
@@ -105,8 +118,10 @@ class MapCatalogue:
 
     def list(self):
         """A :class:`MapInfo` per saved map, sorted by name (a map deleted meanwhile is left out)."""
-        infos = []
-        for name in self.names():
+        infos, names = [], self.names()
+        self._facts.keep_only(self.yaml_path(name) for name in names)
+        self._counts.keep_only(self.waypoints_path(name) for name in names)
+        for name in names:
             try:
                 infos.append(self.describe(name))
             except UnknownMap:
@@ -114,19 +129,21 @@ class MapCatalogue:
         return infos
 
     def describe(self, name):
-        """The :class:`MapInfo` of one map; UnknownMap (with close names) when it is not saved."""
+        """The :class:`MapInfo` of one map; UnknownMap (with close names) when it is not saved.
+
+        The YAML and the image's header are read once per version of the files; a broken
+        map is logged once per version too, and listed with its ``problem``.
+        """
         path = self._existing(name)
         try:
             modified = _iso_time(os.stat(path).st_mtime)
         except FileNotFoundError:
             raise self._unknown(name) from None
-        waypoints = self._count_waypoints(name)
-        try:
-            meta = occupancy.read_meta(path, rotated_ok=True)
-            width, height = mapfile.image_size(path, meta["image"])
-        except (ConfigError, OSError, ValueError) as exc:
-            return MapInfo(name, None, None, None, None, modified, waypoints, problem=str(exc))
-        return MapInfo(name, width, height, meta["resolution"], list(meta["origin"]), modified, waypoints)
+        facts, new = self._facts.get(path, lambda: _facts_of(path))
+        if new and facts["problem"]:
+            log.warning("the map %r is broken: %s", name, facts["problem"])
+        return MapInfo(name, facts["width"], facts["height"], facts["resolution"], facts["origin"], modified,
+                       self._count_waypoints(name), problem=facts["problem"])
 
     def version(self, name):
         """A version of the stored map for an ETag: its YAML's and PGM's change times and sizes."""
@@ -148,10 +165,7 @@ class MapCatalogue:
             raise MapFileError("The map {!r} cannot be read: {}".format(name, exc)) from exc
 
     def _count_waypoints(self, name):
-        try:
-            return len(entries_of(waypoints_file.read(self.waypoints_path(name)) or "", source=name) or {})
-        except (OSError, ValueError):
-            return 0
+        return self._counts.get(self.waypoints_path(name), lambda: (_count_entries(self.waypoints_path(name)), ()))[0]
 
     def _existing(self, name):
         path = self.yaml_path(name)
@@ -273,8 +287,35 @@ _MAP_SAVER_KEYS = ("image", "resolution", "origin", "negate", "occupied_thresh",
 def _raw_meta(yaml_path):
     """The YAML's mapping as written (extra keys kept), checked by map_server's rules first."""
     occupancy.read_meta(yaml_path, rotated_ok=True)
-    with open(yaml_path, encoding="utf-8") as f:
-        return yaml.safe_load(f)
+    try:
+        return bounded_yaml.read(yaml_path, occupancy.MAX_YAML_BYTES)
+    except bounded_yaml.YamlRefused as exc:  # changed since it was checked
+        raise ConfigError(yaml_path, None, str(exc)) from None
+
+
+def _facts_of(yaml_path):
+    """``({width, height, resolution, origin, problem}, [the image's path])`` of a map's YAML."""
+    facts = dict.fromkeys(("width", "height", "resolution", "origin", "problem"))
+    try:
+        meta = occupancy.read_meta(yaml_path, rotated_ok=True)
+    except ConfigError as exc:
+        return dict(facts, problem=str(exc)), ()
+    try:
+        image = occupancy.image_path(yaml_path, meta["image"])
+        facts["width"], facts["height"] = mapfile.image_size(yaml_path, meta["image"])
+    except (OSError, ValueError) as exc:
+        reason = exc.strerror if isinstance(exc, OSError) and exc.strerror else exc
+        problem = "{}: image: {}: {}".format(yaml_path, shown(meta["image"]), reason)
+        return dict(facts, problem=problem), ()
+    facts.update(resolution=meta["resolution"], origin=list(meta["origin"]))
+    return facts, (image,)
+
+
+def _count_entries(waypoints_path):
+    try:
+        return len(entries_of(waypoints_file.read(waypoints_path) or "", source="waypoints") or {})
+    except (OSError, ValueError):
+        return 0
 
 
 def _replace_link(source, target):

@@ -26,7 +26,7 @@ from dataclasses import dataclass
 
 import yaml
 
-from flask_move_server.errors import ConfigError, MapExists, MapFileError
+from flask_move_server.errors import ConfigError, MapExists, MapFileError, shown
 from flask_move_server.sim import occupancy
 from flask_move_server.waypoints.locked_file import fsync_dir, new_file_mode
 
@@ -167,13 +167,13 @@ def _remove_quietly(path):
 def load(yaml_path):
     """Read a map_server map (any image map_server's rules read) into a :class:`Grid`."""
     meta = occupancy.read_meta(yaml_path, rotated_ok=True)
-    image_path = os.path.join(os.path.dirname(os.path.abspath(yaml_path)), meta["image"])
     try:
-        width, height, cells = _cells_of_image(occupancy.read_image(image_path), meta)
+        data = occupancy.read_image(occupancy.image_path(yaml_path, meta["image"]))
+        width, height, cells = _cells_of_image(data, meta)
     except OSError as exc:
-        raise ConfigError(yaml_path, "image", "cannot read {}: {}".format(image_path, exc.strerror))
+        raise ConfigError(yaml_path, "image", "cannot read {}: {}".format(shown(meta["image"]), exc.strerror))
     except ValueError as exc:
-        raise ConfigError(yaml_path, "image", "{}: {}".format(image_path, exc))
+        raise ConfigError(yaml_path, "image", "{}: {}".format(shown(meta["image"]), exc))
     x, y, yaw = meta["origin"]
     return Grid(width, height, meta["resolution"], x, y, cells, origin_yaw=yaw)
 
@@ -191,8 +191,8 @@ def _cells_of_image(data, meta):
 
 
 def image_size(yaml_path, image):
-    """(width, height) from the header of the map's PGM, without reading its pixels."""
-    path = os.path.join(os.path.dirname(os.path.abspath(yaml_path)), image)
+    """(width, height) from the header of the map's PGM (its first 4 KiB), never its pixels."""
+    path = occupancy.image_path(yaml_path, image)
     width, height, _, _ = occupancy.pgm_header(occupancy.read_image(path, head_only=True))
     return width, height
 

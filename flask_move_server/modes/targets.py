@@ -10,7 +10,7 @@ import os
 from dataclasses import dataclass
 from typing import Optional
 
-from flask_move_server.errors import BadMapName, BadRequest, UnknownMap, shown
+from flask_move_server.errors import BadMapName, BadRequest, MapFileError, UnknownMap, shown
 from flask_move_server.geometry import Pose2D
 from flask_move_server.modes import relocalizing
 
@@ -68,7 +68,8 @@ class Targets:
         self.catalogue = catalogue
 
     def of(self, mode, map_name=None, pose=None):
-        """The Target of a request; BadRequest, BadMapName, UnknownMap (and the pose's errors) refuse."""
+        """The Target of a request; BadRequest, BadMapName, UnknownMap, MapFileError (a broken map: nothing
+        would come up on it, so nothing is stopped for it) and the pose's errors refuse."""
         if mode not in MODES:
             raise BadRequest("Unknown mode {}: use one of {}.".format(shown(mode), ", ".join(MODES)))
         if mode != "navigation" and (map_name is not None or pose is not None):
@@ -78,9 +79,16 @@ class Targets:
             yaml_path = self.catalogue.yaml_path(map_name)  # BadMapName for a name no map can have
             if not os.path.isfile(yaml_path):
                 raise self._unknown(map_name)
+            self._refuse_broken(map_name)
         if isinstance(pose, str):
             pose = relocalizing.waypoint_pose(self.waypoints_path(map_name), pose, map_name)
         return Target(mode, map_name, yaml_path, pose)
+
+    def _refuse_broken(self, name):
+        problem = self.catalogue.describe(name).problem
+        if problem:
+            raise MapFileError("The map {!r} cannot be used: {}; fix or replace its files (GET /maps says what "
+                               "is wrong with each map).".format(name, problem))
 
     def _unknown(self, name):
         try:
@@ -105,6 +113,7 @@ class Targets:
         mode, map_name = remembered
         try:
             return self.of(mode, map_name)
-        except (UnknownMap, BadMapName) as exc:
+        except (UnknownMap, BadMapName, MapFileError) as exc:
             log.warning("cannot come back to the map %r: %s", map_name, exc)
-            return unusable_map_target(map_name, "is gone" if isinstance(exc, UnknownMap) else "has a bad name")
+            why = {UnknownMap: "is gone", BadMapName: "has a bad name"}.get(type(exc), "is broken")
+            return unusable_map_target(map_name, why)

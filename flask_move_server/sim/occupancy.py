@@ -9,7 +9,12 @@ a cell value the way map_server computes it: ``p = (255 - pixel) / 255``
 the top of the map, row 0 of the grid the bottom (``origin`` is the pose of
 the lower-left cell), as in ``nav_msgs/OccupancyGrid``.
 
-Pure: no rospy. A bad file raises ConfigError naming the file, key and reason.
+The YAML is read within bounds (:mod:`flask_move_server.bounded_yaml`: at most
+:data:`MAX_YAML_BYTES`, no anchors or aliases, no deep nesting): a map file may be dropped in
+by anyone.
+
+Pure: no rospy. A bad file raises ConfigError naming the file, key and a short reason
+(a value is quoted by :func:`~flask_move_server.errors.shown`: at most 64 characters).
 """
 
 import math
@@ -17,13 +22,13 @@ import os
 import stat
 from dataclasses import dataclass
 
-import yaml
-
-from flask_move_server.errors import ConfigError
+from flask_move_server import bounded_yaml
+from flask_move_server.errors import ConfigError, shown
 
 OCCUPIED, FREE, UNKNOWN = 100, 0, -1
 MAX_CELLS = 6000 * 6000  # past a gmapping canvas (4000 x 4000); a bigger image would not fit a Pi's memory
 MODES = ("trinary", "scale", "raw")
+MAX_YAML_BYTES = 64 * 1024  # map_saver writes ~150 bytes; room for notes, never megabytes to parse
 
 
 @dataclass
@@ -63,13 +68,12 @@ class OccupancyMap:
 def load(yaml_path):
     """Read a map_server map (YAML + PGM) into an :class:`OccupancyMap`."""
     meta = read_meta(yaml_path)
-    image_path = os.path.join(os.path.dirname(os.path.abspath(yaml_path)), meta["image"])
     try:
-        width, height, pixels = parse_pgm(read_image(image_path))
+        width, height, pixels = parse_pgm(read_image(image_path(yaml_path, meta["image"])))
     except OSError as exc:
-        raise ConfigError(yaml_path, "image", "cannot read {}: {}".format(image_path, exc.strerror))
+        raise ConfigError(yaml_path, "image", "cannot read {}: {}".format(shown(meta["image"]), exc.strerror))
     except ValueError as exc:
-        raise ConfigError(yaml_path, "image", "{}: {}".format(image_path, exc))
+        raise ConfigError(yaml_path, "image", "{}: {}".format(shown(meta["image"]), exc))
     cells = cells_from_pixels(width, height, pixels, meta)
     return OccupancyMap(width, height, meta["resolution"], meta["origin"][0], meta["origin"][1], cells,
                         source=str(yaml_path))
@@ -78,12 +82,11 @@ def load(yaml_path):
 def read_meta(path, rotated_ok=False):
     """The checked keys of a map_server YAML; a rotated origin only when ``rotated_ok`` (the sim needs yaw 0)."""
     try:
-        with open(path, encoding="utf-8") as f:
-            meta = yaml.safe_load(f)
+        meta = bounded_yaml.read(path, MAX_YAML_BYTES)
     except OSError as exc:
         raise ConfigError(path, None, "cannot read the map: {}".format(exc.strerror))
-    except yaml.YAMLError as exc:
-        raise ConfigError(path, None, "not valid YAML: {}".format(" ".join(str(exc).split())))
+    except bounded_yaml.YamlRefused as exc:
+        raise ConfigError(path, None, str(exc))
     if not isinstance(meta, dict):
         raise ConfigError(path, None, "a map_server map YAML must be a mapping (image:, resolution:, origin:, ...)")
     return _check_meta(path, meta, rotated_ok)
@@ -92,7 +95,7 @@ def read_meta(path, rotated_ok=False):
 def _number(path, meta, key, default=None):
     value = meta.get(key, default)
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-        raise ConfigError(path, key, "must be a finite number, got {!r}".format(value))
+        raise ConfigError(path, key, "must be a finite number, got {}".format(shown(value)))
     return float(value)
 
 
@@ -101,10 +104,10 @@ def _check_meta(path, meta, rotated_ok=False):
         if key not in meta:
             raise ConfigError(path, key, "missing (map_server needs image, resolution and origin)")
     if not isinstance(meta["image"], str) or not meta["image"]:
-        raise ConfigError(path, "image", "must be the image file name, got {!r}".format(meta["image"]))
+        raise ConfigError(path, "image", "must be the image file name, got {}".format(shown(meta["image"])))
     origin = meta["origin"]
     if not isinstance(origin, list) or len(origin) != 3:
-        raise ConfigError(path, "origin", "must be [x, y, yaw], got {!r}".format(origin))
+        raise ConfigError(path, "origin", "must be [x, y, yaw], got {}".format(shown(origin)))
     origin = [_number(path, {"origin": v}, "origin") for v in origin]
     if abs(origin[2]) > 1e-9 and not rotated_ok:
         raise ConfigError(path, "origin", "the simulator needs an unrotated map (yaw 0), got yaw {}".format(origin[2]))
@@ -120,12 +123,17 @@ def _check_meta(path, meta, rotated_ok=False):
     if checked["resolution"] <= 0:
         raise ConfigError(path, "resolution", "must be greater than 0 (metres per cell)")
     if checked["negate"] not in (0, 1, True, False):
-        raise ConfigError(path, "negate", "must be 0 or 1, got {!r}".format(checked["negate"]))
+        raise ConfigError(path, "negate", "must be 0 or 1, got {}".format(shown(checked["negate"])))
     if checked["mode"] not in MODES:
-        raise ConfigError(path, "mode", "must be one of {}, got {!r}".format(", ".join(MODES), checked["mode"]))
+        raise ConfigError(path, "mode", "must be one of {}, got {}".format(", ".join(MODES), shown(checked["mode"])))
     if not 0 <= checked["free_thresh"] < checked["occupied_thresh"] <= 1:
         raise ConfigError(path, "free_thresh", "thresholds must satisfy 0 <= free_thresh < occupied_thresh <= 1")
     return checked
+
+
+def image_path(yaml_path, image):
+    """The path of the map's ``image``, relative to the YAML's folder."""
+    return os.path.join(os.path.dirname(os.path.abspath(yaml_path)), image)
 
 
 def cells_from_pixels(width, height, pixels, meta):
