@@ -88,10 +88,10 @@ def test_an_image_declaring_more_cells_than_a_map_may_have_is_refused_unread(cli
     assert "7000 x 7000" in client.get("/maps/vast").get_json()["problem"]
 
 
-def test_a_map_pointing_outside_the_folder_at_a_non_image_says_so(client, folder):
+def test_a_map_pointing_outside_the_folder_is_refused_unread(client, folder):
     drop_map(folder, "passwd", "/etc/passwd")
     answer = client.get("/maps/passwd/image")
-    assert answer.status_code == 503 and "not a PGM image" in answer.get_json()["message"]
+    assert answer.status_code == 503 and "outside the map's folder" in answer.get_json()["message"]
 
 
 @pytest.fixture

@@ -161,3 +161,38 @@ def test_a_stack_failing_with_a_huge_message_carries_a_bounded_one_in_the_mode_a
         assert seen and all(len(e["message"]) <= 1000 for e in seen)
     finally:
         modes.close()
+
+
+# the image (and the YAML) stay in the maps folder ---------------------------------------------
+
+
+def test_an_image_named_outside_the_folder_is_refused_unread(client, folder, tmp_path):
+    with open(str(tmp_path / "secret.pgm"), "wb") as f:  # a real image, one level above the folder
+        f.write(SMALL_PGM)
+    drop(folder, "up", "image: ../secret.pgm\nresolution: 0.05\norigin: [0.0, 0.0, 0.0]\n")
+    drop(folder, "abs", "image: {}\nresolution: 0.05\norigin: [0.0, 0.0, 0.0]\n".format(tmp_path / "secret.pgm"))
+    drop(folder, "shadow", "image: /etc/shadow\nresolution: 0.05\norigin: [0.0, 0.0, 0.0]\n")
+    maps = listed(client)
+    for name in ("up", "abs", "shadow"):
+        assert "outside the map's folder" in maps[name]["problem"], maps[name]
+        answer = client.get("/maps/{}/image".format(name))
+        assert answer.status_code == 503 and "outside the map's folder" in answer.get_json()["message"]
+
+
+def test_a_symlink_in_the_folder_is_followed_only_while_it_stays_in_the_folder(client, folder, tmp_path):
+    os.makedirs(os.path.join(folder, "images"))
+    os.symlink(os.path.join(folder, "b.pgm"), os.path.join(folder, "images", "inside.pgm"))
+    with open(str(tmp_path / "outside.pgm"), "wb") as f:
+        f.write(SMALL_PGM)
+    os.symlink(str(tmp_path / "outside.pgm"), os.path.join(folder, "outside.pgm"))
+    drop(folder, "in", "image: images/inside.pgm\nresolution: 0.05\norigin: [0.0, 0.0, 0.0]\n")
+    drop(folder, "out", "image: outside.pgm\nresolution: 0.05\norigin: [0.0, 0.0, 0.0]\n")
+    with open(str(tmp_path / "elsewhere.yaml"), "w") as f:
+        f.write("image: b.pgm\nresolution: 0.05\norigin: [0.0, 0.0, 0.0]\n")
+    os.symlink(str(tmp_path / "elsewhere.yaml"), os.path.join(folder, "linked.yaml"))
+    maps = listed(client)
+    assert maps["in"]["width"] == 2 and client.get("/maps/in/image").status_code == 200
+    assert "outside the map's folder" in maps["out"]["problem"]
+    assert "symbolic link to a file outside the maps folder" in maps["linked"]["problem"]
+    answer = client.get("/maps/linked/image")
+    assert answer.status_code == 503 and "symbolic link" in answer.get_json()["message"]

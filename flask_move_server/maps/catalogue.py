@@ -160,6 +160,7 @@ class MapCatalogue:
         """The map's :class:`~flask_move_server.maps.mapfile.Grid`; MapFileError if its files are broken."""
         path = self._existing(name)
         try:
+            _read_meta(path)
             return mapfile.load(path)
         except ConfigError as exc:
             raise MapFileError("The map {!r} cannot be read: {}".format(name, exc)) from exc
@@ -284,9 +285,17 @@ class MapCatalogue:
 _MAP_SAVER_KEYS = ("image", "resolution", "origin", "negate", "occupied_thresh", "free_thresh")
 
 
+def _read_meta(yaml_path):
+    """map_server's checked keys of a map YAML in the folder; a symlink must resolve into the folder."""
+    if not occupancy.inside(os.path.dirname(yaml_path), yaml_path):
+        raise ConfigError(yaml_path, None, "a symbolic link to a file outside the maps folder; copy the map "
+                                           "into the folder instead")
+    return occupancy.read_meta(yaml_path, rotated_ok=True)
+
+
 def _raw_meta(yaml_path):
     """The YAML's mapping as written (extra keys kept), checked by map_server's rules first."""
-    occupancy.read_meta(yaml_path, rotated_ok=True)
+    _read_meta(yaml_path)
     try:
         return bounded_yaml.read(yaml_path, occupancy.MAX_YAML_BYTES)
     except bounded_yaml.YamlRefused as exc:  # changed since it was checked
@@ -297,7 +306,7 @@ def _facts_of(yaml_path):
     """``({width, height, resolution, origin, problem}, [the image's path])`` of a map's YAML."""
     facts = dict.fromkeys(("width", "height", "resolution", "origin", "problem"))
     try:
-        meta = occupancy.read_meta(yaml_path, rotated_ok=True)
+        meta = _read_meta(yaml_path)
     except ConfigError as exc:
         return dict(facts, problem=str(exc)), ()
     try:

@@ -10,8 +10,8 @@ the top of the map, row 0 of the grid the bottom (``origin`` is the pose of
 the lower-left cell), as in ``nav_msgs/OccupancyGrid``.
 
 The YAML is read within bounds (:mod:`flask_move_server.bounded_yaml`: at most
-:data:`MAX_YAML_BYTES`, no anchors or aliases, no deep nesting): a map file may be dropped in
-by anyone.
+:data:`MAX_YAML_BYTES`, no anchors or aliases, no deep nesting) and the image must lie in
+the YAML's own folder (:func:`image_path`): a map file may be dropped in by anyone.
 
 Pure: no rospy. A bad file raises ConfigError naming the file, key and a short reason
 (a value is quoted by :func:`~flask_move_server.errors.shown`: at most 64 characters).
@@ -132,8 +132,24 @@ def _check_meta(path, meta, rotated_ok=False):
 
 
 def image_path(yaml_path, image):
-    """The path of the map's ``image``, relative to the YAML's folder."""
-    return os.path.join(os.path.dirname(os.path.abspath(yaml_path)), image)
+    """The path of the map's ``image``, which must lie in the YAML's folder (symlinks followed).
+
+    map_server reads any path; a map YAML dropped in by hand must not make the server
+    open ``/etc/shadow`` or ``../../x.pgm``, so the image's real path must be inside the
+    real folder of the YAML. ValueError says why not.
+    """
+    folder = os.path.dirname(os.path.abspath(yaml_path))
+    path = os.path.join(folder, image)
+    if not inside(folder, path):
+        raise ValueError("outside the map's folder: put the image beside the YAML and name it there "
+                         "(image: NAME.pgm)")
+    return path
+
+
+def inside(folder, path):
+    """Whether ``path``, symlinks resolved, is in ``folder`` (itself resolved) or below it."""
+    real_folder, real_path = os.path.realpath(folder), os.path.realpath(path)
+    return real_path.startswith(real_folder.rstrip(os.sep) + os.sep)
 
 
 def cells_from_pixels(width, height, pixels, meta):
