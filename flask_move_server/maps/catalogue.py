@@ -232,16 +232,19 @@ class MapCatalogue:
     def delete(self, name, active=None):
         """Delete map ``name`` (YAML first, so it is gone at once), ``NAME.pgm`` and its waypoints; not the active one.
 
-        A broken map can be deleted too; an image the YAML names under another name is left alone.
+        A broken map can be deleted too; an image the YAML names under another name is left alone
+        (but for the temporary name an interrupted save left it naming).
         """
         with self._lock:
             path = self._existing(name)
             self._refuse_active(name, active, "deleted")
             waypoints = self.waypoints_path(name)
+            image = mapfile.named_image(path)
+            parts = [image] if image and mapfile.is_part(image) else []
             try:
                 os.unlink(path)
                 for other in [os.path.join(self.folder, name + ".pgm"), waypoints, waypoints + ".bak"] + \
-                        self._waypoints_leftovers(name):
+                        parts + self._waypoints_leftovers(name):
                     _remove_if_there(other)
             except OSError as exc:
                 raise MapFileError("Could not delete the map {!r}: {}.".format(name, exc.strerror)) from exc
@@ -265,13 +268,21 @@ class MapCatalogue:
     # leftovers ------------------------------------------------------------
 
     def leftovers(self):
-        """Temporary files a killed save or rename left in the folder."""
+        """Temporary files a killed save or rename left in the folder, but for one a map's YAML names.
+
+        A save killed after the YAML was replaced may leave it naming the new image under its
+        temporary name: that image is the map now, and is kept (the next save of the map tidies it).
+        """
         try:
             files = os.listdir(self.folder)
         except OSError:
             return []
-        return sorted(os.path.join(self.folder, f) for f in files
-                      if f.startswith(mapfile.LEFTOVER_PREFIX) and f.endswith(mapfile.LEFTOVER_SUFFIX))
+        named = {os.path.realpath(p) for p in map(mapfile.named_image, self._yaml_paths()) if p}
+        parts = (os.path.join(self.folder, f) for f in files if mapfile.is_part(f))
+        return sorted(p for p in parts if os.path.realpath(p) not in named)
+
+    def _yaml_paths(self):
+        return [os.path.join(self.folder, name + ".yaml") for name in self.names()]
 
     def remove_leftovers(self):
         """Delete the leftovers (call when no save runs, e.g. at start-up); the paths removed."""

@@ -7,9 +7,11 @@ a cell 0..``free`` (25) is 254, a cell >= ``occupied`` (65) is 0, anything else
 fixed ``negate: 0``, ``occupied_thresh: 0.65``, ``free_thresh: 0.196``, so a map
 saved here and one saved by ``rosrun map_server map_saver`` are interchangeable.
 
-Saving is atomic for the pair: both files are written under temporary names in
-the folder (``.~NAME.*.part``), fsynced, then renamed into place, the PGM first
-and the YAML last, so a save killed half-way leaves no YAML and no listed map.
+Saving keeps one complete version of the pair on disk at every moment (see
+:func:`save`): files are written under temporary names in the folder
+(``.~NAME.*.part``), fsynced, and the YAML is replaced in one rename by a YAML
+naming an image already in place, so a save killed at any step leaves the old
+map or the new one, never neither, and a new map is listed only once complete.
 
 Reading uses map_server's rules from :mod:`flask_move_server.sim.occupancy`
 (one place), with a C-speed path for the 8-bit P5 images map_saver writes.
@@ -22,6 +24,7 @@ import json
 import math
 import os
 import tempfile
+import uuid
 from dataclasses import dataclass
 
 import yaml
@@ -118,27 +121,76 @@ def _yaml_scalar(text):
 
 
 def save(folder, name, grid, overwrite=False):
-    """Write ``NAME.pgm`` + ``NAME.yaml`` into ``folder`` atomically; MapExists if saved and not ``overwrite``."""
+    """Write ``NAME.pgm`` + ``NAME.yaml`` into ``folder`` atomically; MapExists if saved and not ``overwrite``.
+
+    At every moment one complete version of the map is on disk, old or new: the YAML is only
+    ever replaced (``os.replace``) by one naming an image already written and fsynced, and an
+    image is only replaced once no YAML names it. Overwriting a map whose YAML names
+    ``NAME.pgm`` therefore goes through the new image's temporary name: the YAML names it,
+    then ``NAME.pgm`` is replaced, then the YAML names ``NAME.pgm`` again. Start-up cleanup
+    (:func:`leftover_parts`) never removes a temporary file a YAML names.
+    """
+    folder = os.path.abspath(folder)
     yaml_path = os.path.join(folder, name + ".yaml")
-    pgm_path = os.path.join(folder, name + ".pgm")
     if not overwrite and os.path.exists(yaml_path):
         raise MapExists("A map named {!r} is already saved; ask to overwrite it, or pick another name.".format(name))
-    origin = (grid.origin_x, grid.origin_y, grid.origin_yaw)
-    parts = []
+    old_image = named_image(yaml_path)
+    part = None
     try:
-        parts.append(write_part(folder, name, ".pgm", pgm_bytes(grid)))
-        parts.append(write_part(folder, name, ".yaml", yaml_text(name + ".pgm", grid.resolution, origin).encode()))
-        if overwrite and os.path.exists(yaml_path):
-            os.unlink(yaml_path)  # never an old YAML describing the new image, even for a moment
-        os.rename(parts[0], pgm_path)
-        os.rename(parts[1], yaml_path)
-        fsync_dir(folder)
+        part = write_part(folder, name, ".pgm", pgm_bytes(grid))
+        if same_file(old_image, os.path.join(folder, name + ".pgm")):
+            _put_yaml(folder, name, os.path.basename(part), grid)  # the new version, under the part's name
+        _put_image(folder, name, part)
+        _put_yaml(folder, name, name + ".pgm", grid)
+        for stale in (part, old_image):  # and an image an interrupted save left named
+            if stale and is_part(stale):
+                _remove_quietly(stale)
     except OSError as exc:
-        for part in parts:
+        if part is not None and not same_file(named_image(yaml_path), part):
             _remove_quietly(part)
         raise MapFileError("Could not save the map {!r} in {}: {}.".format(
             name, folder, exc.strerror or exc)) from exc
     return yaml_path
+
+
+def _put_image(folder, name, part):
+    """``NAME.pgm`` becomes the image ``part`` (a hard link: ``part`` stays until no YAML names it)."""
+    link = os.path.join(folder, "{}{}.{}.pgm{}".format(LEFTOVER_PREFIX, name, uuid.uuid4().hex[:8], LEFTOVER_SUFFIX))
+    os.link(part, link)
+    os.replace(link, os.path.join(folder, name + ".pgm"))
+    fsync_dir(folder)
+
+
+def _put_yaml(folder, name, image, grid):
+    """``NAME.yaml`` replaced, in one rename, by map_saver's YAML naming ``image``."""
+    origin = (grid.origin_x, grid.origin_y, grid.origin_yaw)
+    part = write_part(folder, name, ".yaml", yaml_text(image, grid.resolution, origin).encode())
+    try:
+        os.replace(part, os.path.join(folder, name + ".yaml"))
+    except BaseException:
+        _remove_quietly(part)
+        raise
+    fsync_dir(folder)
+
+
+def named_image(yaml_path):
+    """The path of the image the map YAML at ``yaml_path`` names now (None: no YAML, or it cannot say)."""
+    try:
+        meta = occupancy.read_meta(yaml_path, rotated_ok=True)
+        return occupancy.image_path(yaml_path, meta["image"])
+    except (ConfigError, ValueError):
+        return None
+
+
+def same_file(a, b):
+    """Whether the paths ``a`` and ``b`` (None: no file) name the same file, links resolved."""
+    return a is not None and b is not None and os.path.realpath(a) == os.path.realpath(b)
+
+
+def is_part(path):
+    """Whether ``path`` is named as a save's temporary file (``.~NAME.*.part``)."""
+    base = os.path.basename(path)
+    return base.startswith(LEFTOVER_PREFIX) and base.endswith(LEFTOVER_SUFFIX)
 
 
 def write_part(folder, name, suffix, data):
