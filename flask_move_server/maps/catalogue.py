@@ -44,13 +44,13 @@ MAP_NAME_RULE = NAME_RULE + ", not starting with '.' and not ending in '.waypoin
 
 
 def check_map_name(name):
-    """Return ``name`` if it can name a map (and its files), else raise BadMapName."""
+    """Return ``name`` if it can name a map (and its files), else BadMapName quoting an excerpt of it."""
     try:
         check_name(name)
     except BadWaypoint:
-        raise BadMapName("Invalid map name {!r}: use {}.".format(name, MAP_NAME_RULE)) from None
+        raise BadMapName("Invalid map name {}: use {}.".format(shown(name), MAP_NAME_RULE)) from None
     if name.startswith(".") or name.lower().endswith(".waypoints"):
-        raise BadMapName("Invalid map name {!r}: use {}.".format(name, MAP_NAME_RULE))
+        raise BadMapName("Invalid map name {}: use {}.".format(shown(name), MAP_NAME_RULE))
     return name
 
 
