@@ -5,6 +5,8 @@ mode manager and live map the stand-ins of tests/fake_maps.py, or the real manag
 stand-in stack for ``/mode``.
 """
 
+import os
+
 import pytest
 
 from flask_move_server.events import EventBus
@@ -63,3 +65,46 @@ def test_a_long_bad_map_name_is_echoed_in_a_short_excerpt(client, method, path, 
 def test_long_names_in_a_mode_request_are_echoed_short(mode_client, body, code):
     message = short_400(mode_client.post("/mode", json=body), code)
     assert "y" * 100 not in message and "z" * 100 not in message and "w" * 100 not in message
+
+
+def files(robot_config):
+    folder = robot_config.maps_folder()
+    return {f: os.stat(os.path.join(folder, f)).st_mtime_ns for f in sorted(os.listdir(folder))}
+
+
+def test_renaming_a_map_to_its_own_name_is_a_no_op(client, robot_config, store):
+    assert client.post("/maps", json={"name": "base"}).status_code == 201
+    before = files(robot_config)
+    answer = client.patch("/maps/base", json={"name": "base"})
+    assert answer.status_code == 200 and answer.get_json()["map"]["name"] == "base", answer.get_json()
+    assert files(robot_config) == before
+
+
+@pytest.mark.parametrize("overwrite", [False, True])
+def test_saving_a_name_that_differs_from_a_saved_one_only_in_case_is_refused(client, robot_config, overwrite):
+    assert client.post("/maps", json={"name": "base"}).status_code == 201
+    before = files(robot_config)
+    answer = client.post("/maps", json={"name": "Base", "overwrite": overwrite})
+    body = answer.get_json()
+    assert answer.status_code == 409 and body["error"] == "map_exists" and "'base'" in body["message"], body
+    assert files(robot_config) == before
+
+
+@pytest.mark.parametrize("old, new", [("flat", "Base"), ("base", "BASE")])
+def test_renaming_to_a_name_that_differs_from_a_saved_one_only_in_case_is_refused(client, robot_config, old, new):
+    for name in ("base", "flat"):
+        assert client.post("/maps", json={"name": name}).status_code == 201
+    before = files(robot_config)
+    answer = client.patch("/maps/" + old, json={"name": new})
+    body = answer.get_json()
+    assert answer.status_code == 409 and body["error"] == "map_exists" and "'base'" in body["message"], body
+    assert files(robot_config) == before
+    assert [m["name"] for m in client.get("/maps").get_json()["maps"]] == ["base", "flat"]
+
+
+def test_renaming_the_map_in_use_to_its_own_name_is_a_no_op_too(tmp_path):
+    from tests.test_maps import small_grid
+
+    maps = MapCatalogue(str(tmp_path / "maps"))
+    maps.save("base", small_grid())
+    assert maps.rename("base", "base", active="base").name == "base"

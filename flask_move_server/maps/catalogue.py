@@ -186,16 +186,36 @@ class MapCatalogue:
         """Save ``grid`` as map ``name`` (atomically; MapExists unless ``overwrite``); its MapInfo."""
         check_map_name(name)
         with self._lock:
+            self.refuse_case_twin(name)
             self._make_folder()
             mapfile.save(self.folder, name, grid, overwrite=overwrite)
         return self.describe(name)
 
+    def refuse_case_twin(self, name):
+        """MapExists naming the saved map whose name differs from ``name`` only in case.
+
+        FAT, exFAT (a USB stick) and macOS fold case: ``Base.yaml`` would be ``base.yaml``
+        there, so map names are unique whatever their case.
+        """
+        for saved in self.names():
+            if saved != name and saved.casefold() == name.casefold():
+                raise MapExists("A map named {!r} is saved, and map names must differ in more than case (a "
+                                "FAT, exFAT or macOS folder cannot hold both); pick another name (to change only "
+                                "the case of a map's name, rename it to another name first).".format(saved))
+
     def rename(self, old, new, active=None):
-        """Rename map ``old`` to ``new`` with its image and waypoints; never the ``active`` map."""
+        """Rename map ``old`` to ``new`` with its image and waypoints; never the ``active`` map.
+
+        Renaming a map to its own name changes nothing (its MapInfo); to a name that differs from
+        a saved one (itself included) only in case, MapExists.
+        """
         check_map_name(new)
         with self._lock:
             old_yaml = self._existing(old)
+            if new == old:
+                return self.describe(old)  # nothing to do, even for the map in use
             self._refuse_active(old, active, "renamed")
+            self.refuse_case_twin(new)
             if self.exists(new):
                 raise MapExists("A map named {!r} already exists; delete it first or pick another name.".format(new))
             try:

@@ -173,6 +173,7 @@ class MapService:
             raise ModesOff("This server does not start the navigation stack (modes.stack: none), so it cannot "
                            "\"then\" switch to the map; save it without \"then\" and start navigation on it "
                            "with your own launch file.")
+        self.catalogue.refuse_case_twin(name)
         if not overwrite and self.catalogue.exists(name):
             raise MapExists("A map named {!r} is already saved; send \"overwrite\": true to replace it, "
                             "or pick another name.".format(name))
