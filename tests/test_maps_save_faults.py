@@ -121,3 +121,15 @@ def test_a_new_map_killed_at_any_step_is_absent_or_whole(tmp_path):
             return
         step += 1
         assert step < 50
+
+
+def test_an_overwrite_works_in_a_folder_without_hard_links(tmp_path, monkeypatch):
+    def no_links(*args, **kwargs):
+        raise PermissionError(1, "Operation not permitted")  # what FAT and exFAT answer
+
+    maps = MapCatalogue(str(tmp_path / "maps"))
+    maps.save("flat", OLD)
+    monkeypatch.setattr(os, "link", no_links)
+    maps.save("flat", NEW, overwrite=True)
+    assert which(maps) == "new" and maps.leftovers() == []
+    assert sorted(os.listdir(maps.folder)) == ["flat.pgm", "flat.yaml"]

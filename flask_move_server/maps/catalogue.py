@@ -260,7 +260,7 @@ class MapCatalogue:
             self._refuse_active(name, active, "deleted")
             waypoints = self.waypoints_path(name)
             image = mapfile.named_image(path)
-            parts = [image] if image and mapfile.is_part(image) else []
+            parts = [image] if image and mapfile.is_part(image, name) else []
             try:
                 os.unlink(path)
                 for other in [os.path.join(self.folder, name + ".pgm"), waypoints, waypoints + ".bak"] + \

@@ -127,23 +127,28 @@ def save(folder, name, grid, overwrite=False):
     ever replaced (``os.replace``) by one naming an image already written and fsynced, and an
     image is only replaced once no YAML names it. Overwriting a map whose YAML names
     ``NAME.pgm`` therefore goes through the new image's temporary name: the YAML names it,
-    then ``NAME.pgm`` is replaced, then the YAML names ``NAME.pgm`` again. Start-up cleanup
-    (:func:`leftover_parts`) never removes a temporary file a YAML names.
+    then ``NAME.pgm`` is replaced (from a hard link, or a second copy where the folder has none),
+    then the YAML names ``NAME.pgm`` again. The start-up cleanup
+    (:meth:`~flask_move_server.maps.catalogue.MapCatalogue.leftovers`) keeps a temporary a YAML names.
     """
     folder = os.path.abspath(folder)
     yaml_path = os.path.join(folder, name + ".yaml")
     if not overwrite and os.path.exists(yaml_path):
         raise MapExists("A map named {!r} is already saved; ask to overwrite it, or pick another name.".format(name))
-    old_image = named_image(yaml_path)
+    old_image, pgm_path = named_image(yaml_path), os.path.join(folder, name + ".pgm")
     part = None
     try:
-        part = write_part(folder, name, ".pgm", pgm_bytes(grid))
-        if same_file(old_image, os.path.join(folder, name + ".pgm")):
+        data = pgm_bytes(grid)
+        part = write_part(folder, name, ".pgm", data)
+        if same_file(old_image, pgm_path):
             _put_yaml(folder, name, os.path.basename(part), grid)  # the new version, under the part's name
-        _put_image(folder, name, part)
+            os.replace(_second_copy(folder, name, part, data), pgm_path)
+        else:  # no YAML names NAME.pgm: it can be replaced at once
+            os.replace(part, pgm_path)
+        fsync_dir(folder)
         _put_yaml(folder, name, name + ".pgm", grid)
         for stale in (part, old_image):  # and an image an interrupted save left named
-            if stale and is_part(stale):
+            if stale and is_part(stale, name):
                 _remove_quietly(stale)
     except OSError as exc:
         if part is not None and not same_file(named_image(yaml_path), part):
@@ -153,12 +158,14 @@ def save(folder, name, grid, overwrite=False):
     return yaml_path
 
 
-def _put_image(folder, name, part):
-    """``NAME.pgm`` becomes the image ``part`` (a hard link: ``part`` stays until no YAML names it)."""
+def _second_copy(folder, name, part, data):
+    """Another temporary name for the image ``part``: a hard link, or (FAT, exFAT: none) a second copy."""
     link = os.path.join(folder, "{}{}.{}.pgm{}".format(LEFTOVER_PREFIX, name, uuid.uuid4().hex[:8], LEFTOVER_SUFFIX))
-    os.link(part, link)
-    os.replace(link, os.path.join(folder, name + ".pgm"))
-    fsync_dir(folder)
+    try:
+        os.link(part, link)
+        return link
+    except OSError:
+        return write_part(folder, name, ".pgm", data)
 
 
 def _put_yaml(folder, name, image, grid):
@@ -187,10 +194,11 @@ def same_file(a, b):
     return a is not None and b is not None and os.path.realpath(a) == os.path.realpath(b)
 
 
-def is_part(path):
-    """Whether ``path`` is named as a save's temporary file (``.~NAME.*.part``)."""
+def is_part(path, name=None):
+    """Whether ``path`` is named as a save's temporary file (``.~NAME.*.part``; of map ``name`` if given)."""
     base = os.path.basename(path)
-    return base.startswith(LEFTOVER_PREFIX) and base.endswith(LEFTOVER_SUFFIX)
+    prefix = LEFTOVER_PREFIX + (name + "." if name is not None else "")
+    return base.startswith(prefix) and base.endswith(LEFTOVER_SUFFIX)
 
 
 def write_part(folder, name, suffix, data):
