@@ -133,3 +133,13 @@ def test_an_overwrite_works_in_a_folder_without_hard_links(tmp_path, monkeypatch
     maps.save("flat", NEW, overwrite=True)
     assert which(maps) == "new" and maps.leftovers() == []
     assert sorted(os.listdir(maps.folder)) == ["flat.pgm", "flat.yaml"]
+
+
+def test_renaming_a_map_an_interrupted_save_left_takes_its_image_along_and_leaves_nothing(tmp_path):
+    maps = MapCatalogue(str(tmp_path / "maps"))
+    maps.save("flat", OLD)
+    killed_save(maps.folder, 4)  # the YAML names the new image's temporary; flat.pgm is new too
+    maps.rename("flat", "home")
+    maps.remove_leftovers()
+    assert sorted(os.listdir(maps.folder)) == ["home.pgm", "home.yaml"]
+    assert which(maps, "home") == "new"

@@ -233,10 +233,12 @@ class MapCatalogue:
         Killed half-way, the folder holds the map twice (or once), never zero times.
         """
         meta = _raw_meta(old_yaml)
-        own_image = meta.get("image") == old + ".pgm"
+        image = meta["image"]
+        # its own image: NAME.pgm, or the temporary an interrupted save left the YAML naming
+        own_image = image == old + ".pgm" or mapfile.is_part(image, old)
         links = [(self.waypoints_path(old) + ext, self.waypoints_path(new) + ext) for ext in ("", ".bak")]
         if own_image:
-            links.append((os.path.join(self.folder, old + ".pgm"), os.path.join(self.folder, new + ".pgm")))
+            links.append((os.path.join(self.folder, image), os.path.join(self.folder, new + ".pgm")))
             meta["image"] = new + ".pgm"
         for source, target in links:
             if os.path.exists(source):
@@ -245,7 +247,8 @@ class MapCatalogue:
         text = mapfile.yaml_text(meta["image"], float(meta["resolution"]), meta["origin"], extra)
         part = mapfile.write_part(self.folder, new, ".yaml", text.encode())
         os.rename(part, self.yaml_path(new))
-        for path in [old_yaml] + [source for source, _ in links] + self._waypoints_leftovers(old):
+        stale = [os.path.join(self.folder, old + ".pgm")] if own_image else []  # no YAML names it now
+        for path in [old_yaml] + [source for source, _ in links] + stale + self._waypoints_leftovers(old):
             _remove_if_there(path)
         waypoints_file.fsync_dir(self.folder)
 
