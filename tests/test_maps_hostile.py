@@ -196,3 +196,21 @@ def test_a_symlink_in_the_folder_is_followed_only_while_it_stays_in_the_folder(c
     assert "symbolic link to a file outside the maps folder" in maps["linked"]["problem"]
     answer = client.get("/maps/linked/image")
     assert answer.status_code == 503 and "symbolic link" in answer.get_json()["message"]
+
+
+def test_post_mode_to_a_broken_map_answers_503_map_file_and_the_mode_stays_small(robot_config, store):
+    stack, bus, seen = StandInStack(), EventBus(), []
+    bus.listen("mode", seen.append)
+    modes = ModeManager(robot_config, stack, bus)
+    client = create_app(robot_config, FakeRobot(), store, events=bus, modes=modes).test_client()
+    try:
+        os.makedirs(robot_config.maps_folder())
+        drop(robot_config.maps_folder(), "bomb", alias_bomb())
+        answer = client.post("/mode", json={"mode": "navigation", "map": "bomb"})
+        body = answer.get_json()
+        assert answer.status_code == 503 and body["error"] == "map_file", body
+        assert "anchors and aliases" in body["message"] and len(answer.data) < 1000
+        assert stack.calls == [] and len(client.get("/mode").data) < 1000 and len(client.get("/status").data) < 4000
+        assert seen == []
+    finally:
+        modes.close()
