@@ -33,3 +33,22 @@ def test_the_sim_serves_its_map_with_an_etag_and_an_empty_maps_folder(sim, tmp_p
     assert sim.get("/maps").json() == {"maps": [], "active": None}
     assert MapCatalogue(str(tmp_path / "maps")).names() == []
     assert sim.stop(signal.SIGTERM) == 0
+
+
+def test_hostile_map_files_in_the_folder_neither_flood_nor_stall_the_real_server(sim, tmp_path):
+    from tests.test_maps_hostile import alias_bomb
+
+    folder = tmp_path / "maps"  # the default: maps/ beside the waypoints file
+    folder.mkdir(exist_ok=True)
+    (folder / "bomb.yaml").write_text(alias_bomb())
+    (folder / "deep.yaml").write_text("image: deep.pgm\nresolution: 0.05\norigin: " + "[" * 5000 + "]" * 5000 + "\n")
+    (folder / "big.yaml").write_text("image: big.pgm\nresolution: 0.05\norigin: [0.0, 0.0, 0.0]\nnotes: [{}]\n".format(
+        ",".join(["1.0"] * 700000)))  # 2.8 MB
+    listed = sim.get("/maps")  # 10 s timeout: the big file alone took 14 s to parse
+    assert listed.status_code == 200 and len(listed.content) < 4000, len(listed.content)
+    assert {m["name"] for m in listed.json()["maps"] if m.get("problem")} == {"big", "bomb", "deep"}
+    switch = sim.post("/mode", {"mode": "navigation", "map": "bomb"})
+    assert switch.status_code == 503 and switch.json()["error"] == "map_file"
+    assert len(sim.get("/mode").content) < 1000 and len(sim.get("/status").content) < 20000
+    assert sim.post("/stop").status_code == 200
+    assert sim.stop(signal.SIGTERM) == 0
