@@ -6,7 +6,8 @@ flood the process: aliases let a few hundred bytes expand to hundreds of megabyt
 minute, and thousands of nested brackets overflow Python's stack. So the file's size is
 checked before it is read, its events are scanned (anchors, aliases and nesting deeper
 than :data:`MAX_DEPTH` refused) before anything is built, and libyaml's C parser is used
-where PyYAML has it. Every refusal is a :class:`YamlRefused` with a short reason.
+where PyYAML has it. Every refusal is a :class:`YamlRefused` with a short reason saying where
+and what, never the file's text (:func:`flask_move_server.waypoints.safe_yaml.describe`).
 Pure: PyYAML only.
 """
 
@@ -14,6 +15,8 @@ import os
 import stat
 
 import yaml
+
+from flask_move_server.waypoints import safe_yaml
 
 MAX_DEPTH = 32  # levels of nested mappings and lists; a map YAML has 2
 _Loader = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
@@ -51,12 +54,10 @@ def load(text):
         return yaml.load(text, Loader=_Loader)  # noqa: S506 - a SafeLoader
     except YamlRefused:
         raise
-    except yaml.YAMLError as exc:
-        raise YamlRefused("not valid YAML: " + _cut(" ".join(str(exc).split()), 200)) from None
-    except (ValueError, OverflowError) as exc:  # e.g. an integer of more digits than Python converts
-        raise YamlRefused("a value YAML cannot hold: " + _cut(str(exc), 120)) from None
-    except RecursionError:  # not reached past the depth check; a broken file all the same
-        raise YamlRefused("nested too deeply") from None
+    except yaml.YAMLError as exc:  # where and what, never the file's text (it may be a link to a secret)
+        raise YamlRefused("not valid YAML: " + _cut(safe_yaml.describe(exc), 200)) from None
+    except Exception as exc:  # noqa: BLE001 - hostile text: whatever the parser raises, it is unreadable
+        raise YamlRefused("cannot be read ({})".format(type(exc).__name__)) from None
 
 
 def _check_events(text):

@@ -100,7 +100,18 @@ def test_a_long_bad_value_is_quoted_in_a_short_excerpt(client, folder, key, valu
     drop(folder, "long", "".join("{}: {}\n".format(k, v) for k, v in fields.items()))
     problem = listed(client)["long"]["problem"]
     assert len(problem) < len(folder) + 300, problem
-    assert key in problem or "cannot hold" in problem
+    assert key in problem or "cannot be read (ValueError)" in problem
+
+
+@pytest.mark.parametrize("text", [
+    "image: b.pgm\nsecret: !!python/object:hunter2 x\n",  # PyYAML's message quotes the tag
+    "image: b.pgm\nsecret: \"hunter2\n",  # unterminated
+    "image: b.pgm\nsecret: [hunter2\n",
+])
+def test_a_map_yaml_that_does_not_parse_is_described_without_its_text(client, folder, text):
+    drop(folder, "bad", text)
+    problem = listed(client)["bad"]["problem"]
+    assert "hunter2" not in problem and "line" in problem, problem
 
 
 def test_an_unchanged_map_is_parsed_once_however_often_it_is_listed(client, folder, monkeypatch):
