@@ -32,7 +32,10 @@ class Robot:
     def goto(self, goal):
         """Send the robot to ``goal``; returns the goal's sequence number."""
         self._refuse_motion("goals are")
-        ticket = self.goal_gate.admit() if self.goal_gate is not None else None
+        ticket = None
+        if self.goal_gate is not None:
+            self.navigator.check_ros()  # ROS down is the first reason, whatever the mode says
+            ticket = self.goal_gate.admit()
         self.drive.rearm()  # a deliberate command: motion after an e-stop release starts here
         seq = self.navigator.goto(goal)
         if self.goal_gate is not None:

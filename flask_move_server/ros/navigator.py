@@ -278,11 +278,15 @@ class Navigator:
         write_pose(target.pose, pose)
         return message
 
-    def _check_reachable(self):
+    def check_ros(self):
+        """RosUnavailable, saying why, unless this node is connected and its goal interface set up."""
         if not self._node.connected:
             raise RosUnavailable(self._why_not_connected())
         if self._client is None and self._goal_pub is None:
             raise RosUnavailable("The ROS node is still starting (or stopping); try again in a moment.")
+
+    def _check_reachable(self):
+        self.check_ros()
         if self._client is not None and not self._readiness.ready(self._config.server_wait):
             action = rospy.resolve_name(self._config.action)
             raise NavigationUnavailable(
