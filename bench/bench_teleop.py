@@ -6,16 +6,22 @@
 2. CPU of the base controller alone (``python -m flask_move_server.drive``,
    sim backend) at 20 Hz and 50 Hz odometry, idle and driven at 10 Hz.
 
-Run: ``.venv/bin/python bench/bench_teleop.py [--requests N] [--seconds S]``.
-Starts its own ROS master on a free port.
+Run: ``.venv/bin/python bench/bench_teleop.py [--requests N] [--seconds S] [--rosbridge ws://HOST:PORT]``.
+Starts its own ROS master on a free port. With ``--rosbridge`` it also publishes the
+same Twists through a running rosbridge_websocket (ROS 1) into the same base
+controller, and then uses the master of ``$ROS_MASTER_URI``, the one rosbridge is on.
 """
 
 import argparse
+import base64
 import contextlib
+import hashlib
+import json
 import os
 import shutil
 import socket
 import statistics
+import struct
 import subprocess
 import sys
 import tempfile
@@ -32,13 +38,16 @@ def free_port():
         return s.getsockname()[1]
 
 
-def start_master():
+def start_master(uri=None):
+    """A new ROS master on a free port (its process), or None once the one at ``uri`` answers."""
     from flask_move_server.ros import master
 
-    port = free_port()
-    proc = subprocess.Popen([shutil.which("rosmaster") or "rosmaster", "--core", "-p", str(port)],
-                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    uri = "http://127.0.0.1:{}".format(port)
+    proc = None
+    if uri is None:
+        port = free_port()
+        proc = subprocess.Popen([shutil.which("rosmaster") or "rosmaster", "--core", "-p", str(port)],
+                                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        uri = "http://127.0.0.1:{}".format(port)
     deadline = time.monotonic() + 20
     while not master.identity("/bench", uri, timeout=0.5):
         if time.monotonic() > deadline:
@@ -102,15 +111,71 @@ def measure(url, arrivals, backend, n):
         t1 = time.monotonic()
         assert r.status == 200, text
         http.append(t1 - t0)
-        arrived = arrivals.after(t0)
-        if arrived is not None:
-            topic.append(arrived - t0)
-        if backend is not None:
-            applied = applied_after(backend, t0)
-            if applied is not None:
-                motors.append(applied - t0)
+        ends(t0, arrivals, backend, topic, motors)
         time.sleep(0.01)
     return http, topic, motors
+
+
+def ends(t0, arrivals, backend, topic, motors):
+    """Append the times from ``t0`` to the Twist's arrival and (with a backend) to the motor command."""
+    arrived = arrivals.after(t0)
+    if arrived is not None:
+        topic.append(arrived - t0)
+    if backend is not None:
+        applied = applied_after(backend, t0)
+        if applied is not None:
+            motors.append(applied - t0)
+
+
+def measure_rosbridge(url, topic_name, arrivals, backend, n):
+    """As :func:`measure`, the same Twists published through rosbridge (no answer to wait for)."""
+    sock = ws_connect(url)
+    ws_send(sock, json.dumps({"op": "advertise", "topic": topic_name, "type": "geometry_msgs/Twist"}))
+    time.sleep(1.0)  # let the subscribers connect to rosbridge's publisher
+    topic, motors = [], []
+    for i in range(n):
+        text = json.dumps({"op": "publish", "topic": topic_name,
+                           "msg": {"linear": {"x": 0.1 + 0.002 * (i % 50)}, "angular": {"z": 0.0}}})
+        t0 = time.monotonic()
+        ws_send(sock, text)
+        ends(t0, arrivals, backend, topic, motors)
+        time.sleep(0.01)
+    ws_send(sock, "", opcode=0x8)  # close
+    sock.close()
+    return topic, motors
+
+
+def ws_connect(url):
+    """A socket to ``ws://host:port[/path]`` after the RFC 6455 handshake (standard library only)."""
+    from urllib.parse import urlsplit
+
+    parts = urlsplit(url)
+    sock = socket.create_connection((parts.hostname, parts.port or 80), timeout=5)
+    sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)  # as http.client's connection
+    key = base64.b64encode(os.urandom(16)).decode()
+    sock.sendall("GET {} HTTP/1.1\r\nHost: {}\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n"
+                 "Sec-WebSocket-Key: {}\r\nSec-WebSocket-Version: 13\r\n\r\n"
+                 .format(parts.path or "/", parts.netloc, key).encode())
+    head = b""
+    while b"\r\n\r\n" not in head:
+        chunk = sock.recv(4096)
+        if not chunk:
+            break
+        head += chunk
+    accept = base64.b64encode(hashlib.sha1((key + "258EAFA5-E914-47DA-95CA-C5AB0DC85B11").encode()).digest())
+    if not head.startswith(b"HTTP/1.1 101") or accept not in head:
+        raise SystemExit("no websocket at {}: {!r}".format(url, head[:200]))
+    return sock
+
+
+def ws_send(sock, text, opcode=0x1):
+    """One final, masked frame (a text frame unless ``opcode`` says otherwise), as a client must send it."""
+    data, mask = text.encode(), os.urandom(4)
+    n = len(data)
+    length = bytes([0x80 | n]) if n < 126 else struct.pack("!BH", 0x80 | 126, n) if n < 65536 \
+        else struct.pack("!BQ", 0x80 | 127, n)
+    masked = (int.from_bytes(data, "big") ^ int.from_bytes((mask * (n // 4 + 1))[:n], "big")).to_bytes(n, "big")
+    sock.sendall(bytes([0x80 | opcode]) + length + mask + masked)
 
 
 def percentile(values, p):
@@ -125,7 +190,7 @@ def row(name, values):
     return "| {} | {:.2f} | {:.2f} | {} |".format(name, statistics.median(ms), percentile(ms, 99), len(ms))
 
 
-def our_server(n, tmp):
+def our_server(n, tmp, rosbridge=None):
     from flask_move_server import cli, config
     from flask_move_server.drive import make_drive
     from flask_move_server.drive.backends.sim import SimBackend
@@ -148,13 +213,15 @@ def our_server(n, tmp):
     robot = cli.build_robot(cfg, node, drive)
     app = create_app(cfg, robot, WaypointStore(cfg.waypoints.file))
     arrivals = Arrivals("bench/cmd_vel")
-    with serving(app) as url:
+    cfg.server.port = 0
+    with serving(app, cfg.server) as url:
         time.sleep(1.0)  # let the subscribers connect
         results = measure(url, arrivals, backend, n)
+    robot.close()  # teleop's publisher gone: rosbridge's Twists are the only ones on the topic
+    bridged = measure_rosbridge(rosbridge, "/bench/cmd_vel", arrivals, backend, n) if rosbridge else ([], [])
     arrivals.sub.unregister()
-    robot.close()
     drive.close()
-    return node, results
+    return node, results, bridged
 
 
 def bare_flask(n):
@@ -182,10 +249,16 @@ def bare_flask(n):
 
 
 @contextlib.contextmanager
-def serving(app):
+def serving(app, server_config=None):
+    """``app`` served in a thread: on the robot's hardened server (``server_config``), else plain waitress."""
     import waitress
 
-    server = waitress.create_server(app, host="127.0.0.1", port=0, threads=6, clear_untrusted_proxy_headers=True)
+    from flask_move_server.http.server import HttpServer
+
+    if server_config is not None:
+        server = HttpServer(app, server_config)
+    else:
+        server = waitress.create_server(app, host="127.0.0.1", port=0, threads=6, clear_untrusted_proxy_headers=True)
     thread = threading.Thread(target=server.run, daemon=True)
     thread.start()
     try:
@@ -235,11 +308,15 @@ def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--requests", type=int, default=300)
     parser.add_argument("--seconds", type=float, default=10.0)
+    parser.add_argument("--rosbridge", metavar="ws://HOST:PORT",
+                        help="also publish through this rosbridge_websocket, on the master of $ROS_MASTER_URI")
     args = parser.parse_args(argv)
-    master = start_master()
+    if args.rosbridge and not os.environ.get("ROS_MASTER_URI"):
+        parser.error("--rosbridge needs ROS_MASTER_URI: the master that rosbridge_websocket is registered with")
+    master = start_master(os.environ["ROS_MASTER_URI"] if args.rosbridge else None)
     tmp = tempfile.mkdtemp(prefix="bench_teleop")
     try:
-        node, (http, topic, motors) = our_server(args.requests, tmp)
+        node, (http, topic, motors), (bridged_topic, bridged_motors) = our_server(args.requests, tmp, args.rosbridge)
         bare_http, bare_topic, _ = bare_flask(args.requests)
         print("| POST /teleop ({} requests) | p50 ms | p99 ms | n |".format(args.requests))
         print("|---|---|---|---|")
@@ -248,6 +325,9 @@ def main(argv=None):
         print(row("flask-move-server: motor command applied (sim)", motors))
         print(row("bare Flask + rospy: HTTP response", bare_http))
         print(row("bare Flask + rospy: Twist on /cmd_vel", bare_topic))
+        if args.rosbridge:
+            print(row("rosbridge_websocket: Twist on /cmd_vel", bridged_topic))
+            print(row("rosbridge_websocket: motor command applied (sim)", bridged_motors))
         print()
         print("| base controller alone (sim backend) | idle: % of one core | driven at 10 Hz: % of one core |")
         print("|---|---|---|")
@@ -257,8 +337,9 @@ def main(argv=None):
             print("| odometry at {} Hz | {:.1f} | {:.1f} |".format(rate, idle, driven))
         node.close()
     finally:
-        master.terminate()
-        master.wait(10)
+        if master is not None:
+            master.terminate()
+            master.wait(10)
         shutil.rmtree(tmp, ignore_errors=True)
 
 
