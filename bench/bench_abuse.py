@@ -54,6 +54,7 @@ class SimServer(ServerProcess):
         shutil.copy(os.path.join(ROOT, "config", "waypoints.demo.yaml"), os.path.join(home, "waypoints.yaml"))
         with open(os.path.join(home, "sim.yaml"), "w") as f:
             f.write("server:\n  token: {}\n".format(TOKEN))
+        self.waypoints_file = os.path.join(home, "waypoints.yaml")
         self.master_uri = "http://127.0.0.1:{}".format(free_port())
         env = {"ROS_MASTER_URI": self.master_uri, "ROS_HOME": home,
                "ROS_LOG_DIR": os.path.join(home, "log"), "ROS_IP": "127.0.0.1"}

@@ -88,6 +88,22 @@ def goal_storm(server, seconds):
         n += 1
 
 
+def deep_waypoints(server, seconds):
+    """The owner's editor saving a waypoints file of 5,000 nested brackets, read back each time."""
+    path, good = server.waypoints_file, open(server.waypoints_file).read()
+    end, n = time.monotonic() + seconds, 0
+    try:
+        while time.monotonic() < end:
+            with open(path, "w") as f:
+                f.write("waypoints:\n  k: " + "[" * 5000 + "]" * 5000 + "\n# {}\n".format(n))
+            server.call("GET", "/waypoints")
+            n += 1
+            time.sleep(0.2)
+    finally:
+        with open(path, "w") as f:
+            f.write(good)
+
+
 def maps_listing(server, seconds):
     storm(server, seconds, path="/maps", method="GET", clients=4)
 
@@ -99,6 +115,7 @@ LOADS = [
     ("8 clients PUT /waypoints/<name>", storm),
     ("a goal storm (one client, back to back)", goal_storm),
     ("4 clients GET /maps (the maps folder: {maps})", maps_listing),
+    ("the waypoints file saved with 5,000 nested brackets, 5 times a second", deep_waypoints),
 ]
 
 
