@@ -89,39 +89,34 @@ class SimServer(ServerProcess):
         self.kill()
 
 
+def stops_while_driving(server, rounds):
+    """``rounds`` times: a goal far away, then ``POST /stop``; the latencies in ms (None: no answer)."""
+    latencies = []
+    for _ in range(rounds):
+        try:
+            server.drive_far()
+            status, body, seconds = server.call("POST", "/stop", timeout=10)
+        except (OSError, AssertionError):  # before issues 10 and 20: no answer at all
+            latencies.append(None)
+            break
+        assert status == 200 and body["canceled_goal"], (status, body)
+        latencies.append(seconds * 1000)
+    return latencies
+
+
 def stop_with_hostile_connections(server, count, rounds):
     """/stop latencies (ms) with ``count`` hostile connections open; and the reconnects they needed."""
-    latencies = []
     with HostileClients("127.0.0.1", server.port, count=count, max_seconds=30 + rounds) as hostile:
         time.sleep(2)  # all connected, slow-loris requests begun
-        for _ in range(rounds):
-            try:
-                server.drive_far()
-                status, body, seconds = server.call("POST", "/stop", timeout=10)
-            except (OSError, AssertionError):  # before issue 10: no answer at all
-                latencies.append(None)
-                break
-            assert status == 200 and body["canceled_goal"], (status, body)
-            latencies.append(seconds * 1000)
-        return latencies, hostile.reconnects
+        return stops_while_driving(server, rounds), hostile.reconnects
 
 
 def stop_with_pipeline_flood(server, count, depth, rounds):
     """/stop latencies (ms) while ``count`` connections pipeline ``depth`` requests each without a
     token, read their 401s and send the next batch; and how many answers the flood got."""
-    latencies = []
     with PipelineFlood("127.0.0.1", server.port, count=count, depth=depth, max_seconds=60 + rounds) as flood:
         time.sleep(2)  # every connection open and pipelining
-        for _ in range(rounds):
-            try:
-                server.drive_far()
-                status, body, seconds = server.call("POST", "/stop", timeout=10)
-            except (OSError, AssertionError):  # before issue 20: no answer at all
-                latencies.append(None)
-                break
-            assert status == 200 and body["canceled_goal"], (status, body)
-            latencies.append(seconds * 1000)
-        return latencies, flood.answers
+        return stops_while_driving(server, rounds), flood.answers
 
 
 def sigterm_with_waiting_client(home):
