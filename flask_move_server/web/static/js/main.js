@@ -5,6 +5,8 @@ import {Live} from "./live.js";
 import {MapView} from "./mapview.js";
 import {initPanels, showMode, loadMaps} from "./panels.js";
 import {initHealth} from "./health.js";
+import {report} from "./notice.js";
+import {initPlaces, loadWaypoints, markPlace} from "./places.js";
 
 const $ = (id) => document.getElementById(id);
 const map = new MapView($("map"));
@@ -13,12 +15,6 @@ let mapVersion = null, mapEtag = null;
 
 // ---- errors and the status line -------------------------------------------------------
 
-let errorTimer = null;
-export function report(error) {
-  $("error").textContent = error.message;
-  clearTimeout(errorTimer);
-  errorTimer = setTimeout(() => { $("error").textContent = ""; }, 8000);
-}
 export const call = (method, path, body) => api(method, path, body).catch((e) => { report(e); throw e; });
 const quietly = (promise) => promise.catch(() => {});
 const buzz = () => { if (navigator.vibrate) navigator.vibrate(30); };  // a felt "sent" on phones that can
@@ -90,69 +86,6 @@ async function loadMap(tries = 3) {
 }
 
 
-let waypointLoads = 0;  // answers can cross (a change, its event, our own reload): the newest request wins
-let shownWaypoints = null;  // the list as drawn, as JSON
-
-export async function loadWaypoints() {
-  const mine = ++waypointLoads;
-  const data = await api("GET", "/waypoints");
-  if (mine !== waypointLoads) return;
-  const shown = JSON.stringify(data.waypoints);
-  if (shown === shownWaypoints) return;  // unchanged: the rows stay, so a tap landing on one is not lost
-  shownWaypoints = shown;
-  map.setWaypoints(data.waypoints);
-  const list = $("places");
-  list.replaceChildren(...data.waypoints.map(placeRow));
-  list.dataset.count = String(data.waypoints.length);
-}
-
-function placeRow(w) {
-  const li = document.createElement("li");
-  li.dataset.name = w.name;
-  li.append(button(w.name, "go needs-live", () => goTo(w.name)),
-    button("Rename", "quiet", () => renamePlace(w)), button("Delete", "quiet", () => deletePlace(w.name)));
-  return li;
-}
-
-export function button(label, className, onClick) {
-  const b = document.createElement("button");
-  b.type = "button";
-  b.textContent = label;
-  b.className = className;
-  b.disabled = className.includes("needs-live") && !isLive();
-  b.onclick = onClick;
-  return b;
-}
-
-const goTo = (name) => { buzz(); return quietly(call("POST", "/goto", {name})); };
-
-/** A new waypoint under a name in use replaces that one: ask first (destructive). */
-function mayReplace(name) {
-  return !map.waypoints.some((w) => w.name === name) || window.confirm("Replace the waypoint " + name + "?");
-}
-
-async function renamePlace(w) {
-  const name = (window.prompt("New name for " + w.name + ":", w.name) || "").trim();
-  if (!name || name === w.name || !mayReplace(name)) return;
-  await quietly(call("PUT", "/waypoints/" + encodeURIComponent(name), {x: w.x, y: w.y, yaw: w.yaw})
-    .then(() => call("DELETE", "/waypoints/" + encodeURIComponent(w.name))));
-  quietly(loadWaypoints());
-}
-
-async function deletePlace(name) {
-  if (!window.confirm("Delete the waypoint " + name + "?")) return;
-  await quietly(call("DELETE", "/waypoints/" + encodeURIComponent(name)));
-  quietly(loadWaypoints());
-}
-
-async function markPlace(x, y, yaw) {
-  const name = (window.prompt("Name this place:") || "").trim();
-  if (!name || !mayReplace(name)) return;
-  await quietly(call("PUT", "/waypoints/" + encodeURIComponent(name), {x, y, yaw}));
-  quietly(loadWaypoints());
-}
-
-map.onWaypoint = (name) => { if (isLive()) goTo(name); };
 map.onPress = (mode, x, y, yaw) => {
   if (!isLive()) return;
   const pose = {x: round(x), y: round(y), yaw: round(yaw)};
@@ -261,13 +194,6 @@ $("estop").onclick = () => quietly(call("POST", "/estop"));
 $("estop-release").onclick = () => {
   if (window.confirm("Release the e-stop? The robot can move again.")) quietly(call("POST", "/estop/release"));
 };
-$("mark-form").onsubmit = (e) => {
-  e.preventDefault();
-  const name = $("newname").value.trim();
-  if (!name || !isLive() || !mayReplace(name)) return;
-  quietly(call("PUT", "/waypoints/" + encodeURIComponent(name), {from: "current"})
-    .then(() => { $("newname").value = ""; return loadWaypoints(); }));
-};
 for (const b of document.querySelectorAll("#gesture button")) b.onclick = () => setGesture(b.dataset.gesture);
 $("fit").onclick = () => map.fit();
 $("follow").onclick = () => { map.follow = !map.follow; };
@@ -283,6 +209,7 @@ for (const tab of document.querySelectorAll("#tabs button")) {
 $("mode").onclick = () => flashHint($("mode").title || "");  // a phone has no hover: tap the mode for its message
 $("token").onclick = () => askTokenAgain().then(() => resync());
 initPanels({call, report, setGesture, isLive});
+initPlaces({call, isLive, map, buzz});
 initHealth();
 setGesture("go");
 showConnection("connecting");
