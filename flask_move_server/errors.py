@@ -259,6 +259,12 @@ class MapNotReceived(MoveServerError, TimeoutError):
     code = "no_map_received"
 
 
+class CommandLate(MoveServerError, RuntimeError):
+    """A motion command reached the robot after its ``valid_until``: it was not carried out."""
+
+    code = "command_late"
+
+
 class TooManyStreams(MoveServerError, RuntimeError):
     """Every ``GET /events`` stream the server allows (``server.max_streams``) is open already."""
 

@@ -8,6 +8,7 @@ amount of memory, and a page that goes away gives its place back.
 
 import contextlib
 import socket
+import threading
 import time
 
 import pytest
@@ -23,7 +24,7 @@ from tests.fake_robot import FakeRobot
 from tests.sse import EventReader
 
 # What these tests publish themselves; the app's own maps service also tells the waypoints it serves.
-ROBOT_STATE = ("pose", "status", "estop", "mode")
+ROBOT_STATE = ("pose", "status", "estop", "mode")  # the clock events come too; most tests skip them
 
 TOKEN = "stream-test-token"
 
@@ -63,13 +64,40 @@ def test_a_new_stream_gets_the_latest_state_at_once_then_each_change(robot_confi
         assert reader.next() == ("pose", {"x": 1.5, "y": 2.0, "yaw": 0.0, "frame": "map", "age": 0.0})
 
 
-def test_a_quiet_stream_gets_heartbeats(robot_config, store, bus):
+def test_a_quiet_stream_tells_the_robot_clock_every_heartbeat(robot_config, store, bus):
+    """A page tells a silent link from a quiet robot by these, and learns the clock valid_until is read on."""
     bus.publish("mode", {"mode": "idle"})
     with _serve(robot_config, store, bus, max_streams=2, heartbeat=0.1) as (_, url), \
-            EventReader(url, kinds=ROBOT_STATE) as reader:
-        assert reader.next(comments=True) == ("mode", {"mode": "idle"})
-        assert reader.next(comments=True) == (":", "heartbeat")
-        assert reader.next(comments=True) == (":", "heartbeat")
+            EventReader(url, kinds=ROBOT_STATE + ("clock",)) as reader:
+        kind, first = reader.next()
+        assert kind == "clock" and abs(first["now"] - time.monotonic()) < 1.0, "the robot's own monotonic clock"
+        assert reader.next() == ("mode", {"mode": "idle"})
+        assert reader.next()[0] == "clock"
+        kind, later = reader.next()
+        assert kind == "clock" and later["now"] > first["now"]
+
+
+def test_a_busy_stream_still_tells_the_clock(robot_config, store, bus):
+    """Poses every 20 ms do not crowd the clock out: it comes every heartbeat whatever else is sent."""
+    with _serve(robot_config, store, bus, max_streams=2, heartbeat=0.3) as (_, url), \
+            EventReader(url, kinds=("pose", "clock")) as reader:
+        stop = threading.Event()
+
+        def chatter():
+            while not stop.wait(0.02):
+                bus.publish("pose", {"x": time.monotonic(), "y": 0.0, "yaw": 0.0, "frame": "map", "age": 0.0})
+        talker = threading.Thread(target=chatter, daemon=True)
+        talker.start()
+        try:
+            clocks, started = [], time.monotonic()
+            while len(clocks) < 4 and time.monotonic() - started < 10:
+                kind, data = reader.next()
+                if kind == "clock":
+                    clocks.append(data["now"])
+        finally:
+            stop.set()
+            talker.join()
+        assert len(clocks) == 4, "a clock event at least every heartbeat while poses stream"
 
 
 def test_one_stream_more_than_max_streams_is_a_json_503_and_a_closed_one_gives_its_place_back(

@@ -36,6 +36,7 @@ STATUS = (
     (errors.ModesOff, 409),
     (errors.WrongMode, 409),
     (errors.DiagnosticsBusy, 409),
+    (errors.CommandLate, 409),
     (errors.MapFileError, 503),
     (errors.StackFailed, 503),
     (errors.TooManyStreams, 503),

@@ -4,8 +4,10 @@ Each event is ``event: <kind>`` and ``data: <one JSON object>`` (docs/api.md lis
 A new stream first gets the latest state of every kind (so a page draws at once, and a
 reconnecting one catches up: events carry state, never deltas), then each change as the
 event bus tells it. A slow reader never queues: its subscription keeps the newest event of
-each kind only. A comment line every ``heartbeat`` seconds keeps proxies from closing an
-idle stream and makes a write to a vanished peer fail, freeing its thread; where the HTTP
+each kind only. A ``clock`` event every ``heartbeat`` seconds, however busy the stream, tells the
+robot's clock (the one ``valid_until`` is read against, see web/deadline.py) and lets a reader tell
+within seconds that the link went silent; it also keeps proxies from closing an idle stream and
+makes a write to a vanished peer fail, freeing its thread; where the HTTP
 server can tell (``flask_move_server.peer_gone`` in the WSGI environ, see http/connection.py),
 a peer that closed the connection is noticed within ``poll`` seconds.
 
@@ -26,10 +28,11 @@ import time
 from flask import Blueprint, Response, current_app, request
 
 from flask_move_server.errors import TooManyStreams
+from flask_move_server.web.deadline import robot_clock
 
 events_api = Blueprint("events", __name__)
 
-HEARTBEAT = 15.0  # s between comment lines on a quiet stream
+HEARTBEAT = 2.0  # s between clock events: a page leaves "live" after a few of them are missed
 POLL = 0.5  # s: how often a quiet stream looks whether its peer left or the server is stopping
 PEER_GONE = "flask_move_server.peer_gone"  # WSGI environ key: a callable, True once the client left
 RETRY_MS = 2000  # the reconnection delay the stream suggests to SSE clients
@@ -115,18 +118,18 @@ class EventStream:
 
     def __iter__(self):
         # The first chunk is written at once: the HTTP server sends the headers with it.
-        yield ("retry: {}\n\n".format(RETRY_MS) + self._pending()).encode("utf-8")
-        quiet_since = time.monotonic()
+        yield ("retry: {}\n\n".format(RETRY_MS) + clock_event() + self._pending()).encode("utf-8")
+        clock_told = time.monotonic()
         while not self._closed:
             item = self._sub.next(self._gate.poll)
-            if item is not None:
-                yield (format_event(*item) + self._pending()).encode("utf-8")
-                quiet_since = time.monotonic()
-            elif self._sub.closed or self._peer_gone():
+            chunk = format_event(*item) + self._pending() if item is not None else ""
+            if not chunk and (self._sub.closed or self._peer_gone()):
                 return
-            elif time.monotonic() - quiet_since >= self._gate.heartbeat:
-                yield b": heartbeat\n\n"
-                quiet_since = time.monotonic()
+            if time.monotonic() - clock_told >= self._gate.heartbeat:
+                chunk += clock_event()
+                clock_told = time.monotonic()
+            if chunk:
+                yield chunk.encode("utf-8")
 
     def _pending(self):
         """Every event waiting now, formatted: one write for a burst (the priming on connect)."""
@@ -144,6 +147,11 @@ class EventStream:
         self._closed = True
         self._sub.close()
         self._gate.leave(self._place)
+
+
+def clock_event():
+    """The robot's clock now, as a ``clock`` event: ``{"now": seconds}``."""
+    return "event: clock\ndata: {{\"now\":{}}}\n\n".format(robot_clock())
 
 
 def format_event(kind, data):

@@ -73,12 +73,17 @@ def build(config):
     }
 
 
+VALID_UNTIL = {"type": "number", "description": "optional: a time on the robot's clock (GET /status 'clock', the "
+                                              "event stream's clock events); read later than this, the command "
+                                              "is refused with 409 command_late and nothing moves"}
+
+
 def _goto(max_wait):
     wait = {"type": "number", "minimum": 0, "maximum": max_wait,
             "description": "seconds to wait for arrival before answering (at most navigation.max_wait)"}
-    by_name = _object({"name": _name("a waypoint's name"), "wait": wait}, ["name"])
+    by_name = _object({"name": _name("a waypoint's name"), "wait": wait, "valid_until": VALID_UNTIL}, ["name"])
     by_pose = _object({"x": _coordinate(POSITION_LIMIT), "y": _coordinate(POSITION_LIMIT),
-                       "yaw": _coordinate(YAW_LIMIT), "wait": wait}, ["x", "y"])
+                       "yaw": _coordinate(YAW_LIMIT), "wait": wait, "valid_until": VALID_UNTIL}, ["x", "y"])
     answer = _object({"status": {"enum": ["ok"]}, "target": {"type": "string", "nullable": True},
                       "goal": _ref("Pose"), "goal_id": {"type": "integer"},
                       "navigation": {"type": "object", "description": "with wait: the goal's state"}})
@@ -90,7 +95,8 @@ def _goto(max_wait):
 def _teleop():
     speed = {"type": "number", "description": "clamped to the configured limit"}
     body = _object({"linear": dict(speed, description="m/s, clamped to teleop.max_linear"),
-                    "angular": dict(speed, description="rad/s, clamped to teleop.max_angular")})
+                    "angular": dict(speed, description="rad/s, clamped to teleop.max_angular"),
+                    "valid_until": VALID_UNTIL})
     answer = _ok({"linear": {"type": "number"}, "angular": {"type": "number"}, "hold": {"type": "number"},
                   "canceled_goal": {"type": "boolean"}})
     return _operation("Drive at a velocity for the deadman time", body, {200: answer}, errors=(409, 503))
@@ -231,8 +237,8 @@ _PNG = {200: {"description": "a greyscale PNG, ETag = the map's version",
 
 def _events():
     stream = {"description": "Server-Sent Events: 'event: <kind>' (pose, status, estop, plan, mode, map, "
-                             "waypoints) and 'data: <one JSON object>', the latest of each kind first; "
-                             "': heartbeat' comments. docs/api.md lists each kind's fields.",
+                             "waypoints, clock) and 'data: <one JSON object>', the latest of each kind first; "
+                             "a clock event every 2 s. docs/api.md lists each kind's fields.",
               "content": {"text/event-stream": {"schema": {"type": "string"}}}}
     return _operation("The robot's state as it changes (Server-Sent Events)", None, {200: stream}, errors=(503,))
 

@@ -11,10 +11,11 @@ from flask_move_server.errors import BadRequest
 from flask_move_server.geometry import Goal, Pose2D
 from flask_move_server.waypoints import YAW_LIMIT, check_coordinate, check_name, make_waypoint
 from flask_move_server.web.body import json_object, number, text
+from flask_move_server.web.deadline import FIELD, check_deadline, robot_clock
 
 api = Blueprint("api", __name__)
 
-GOTO_FIELDS = ("name", "x", "y", "yaw", "wait")
+GOTO_FIELDS = ("name", "x", "y", "yaw", "wait", FIELD)
 POSE_FIELDS = ("x", "y", "yaw")
 
 
@@ -33,6 +34,7 @@ def _config():
 @api.route("/goto", methods=["POST"])
 def goto():
     data = json_object(GOTO_FIELDS)
+    check_deadline(data, "This goal")
     goal = _goal_from(data)
     wait = number(data, "wait", 0, _config().navigation.max_wait) if "wait" in data else None
     seq = _robot().goto(goal)
@@ -66,7 +68,8 @@ def stop():
 
 @api.route("/teleop", methods=["POST"])
 def teleop():
-    data = json_object(("linear", "angular"))
+    data = json_object(("linear", "angular", FIELD))
+    check_deadline(data, "This joystick command")
     linear = number(data, "linear") if "linear" in data else 0.0
     angular = number(data, "angular") if "angular" in data else 0.0
     result = _robot().teleop(linear, angular)
@@ -120,6 +123,7 @@ class WaypointNameConverter(PathConverter):
 @api.route("/status", methods=["GET"])
 def status():
     body = _robot().status()
+    body["clock"] = robot_clock()
     body["waypoints"] = {"file": _store().path, "problem": _store().problem}
     body["mode"] = current_app.extensions["flask_move_server"]["modes"].status()
     return jsonify(body)
