@@ -144,10 +144,24 @@ class Server:
             stack.callback(self._simulation.close)
         robot = build_robot(cfg, node, drive, estop)
         stack.callback(robot.close)
+        self._keep_trips(stack, robot)
         self._watch_estop_button(stack, estop)
         self._node = node
         self.robot = robot
         return robot
+
+    def _keep_trips(self, stack, robot):
+        """The goal under way kept in ``trip.json`` of the state folder: after a restart, the
+        navigation status says which trip was interrupted (the robot does not resume it)."""
+        from flask_move_server.trip_record import TripRecord
+
+        trips = TripRecord(os.path.join(self.config.state_folder(), "trip.json"))
+        stack.callback(trips.close)
+        interrupted = trips.left_over()
+        if interrupted:
+            log.info("%s", interrupted)
+            robot.navigator.set_aside(interrupted)
+        robot.navigator.trips = trips
 
     def _build_modes(self, stack):
         """The mode manager over the backend ``modes.stack`` names; closed (its stack stopped) before the robot."""

@@ -348,21 +348,37 @@ def test_marking_places_renaming_and_deleting_them(sim, page, browser):
 
 
 def test_the_e_stop_latches_shows_and_is_released(sim, page):
+    """While latched, what would move the robot is greyed, and a goal tried anyway is refused in
+    words for a person holding a phone ("press Release"), not the API's ("POST /estop/release")."""
     at_rest(sim)
     page.locator("#estop").tap()
     page.wait_for_selector("#estop-banner", state="visible")
     assert sim.status()["estop"]["latched"] is True
     assert sim.post("/teleop", {"linear": 0.1, "angular": 0}).status_code == 409
+    page.wait_for_function("document.getElementById('pad').getAttribute('aria-disabled') === 'true'", timeout=5000)
     page.locator("#tabs button[data-tab=places]").tap()
-    page.locator("#places li[data-name=kitchen] button.go").tap()  # refused: the page says why, in the robot's words
-    refused = sim.post("/goto", {"name": "kitchen"}).json()["message"]
-    page.wait_for_function("(m) => document.getElementById('error').textContent === m", arg=refused, timeout=5000)
+    assert page.locator("#places li[data-name=kitchen] button.go").is_disabled()
+    screen = Screen(page, sim)
+    start = screen.screen(1.0, 1.0)
+    finger = Finger(page, on_page(page, start))
+    finger.move(on_page(page, (start[0] + 40, start[1])))
+    finger.lift()
+    page.wait_for_function("document.getElementById('error').textContent.includes('Release')", timeout=5000)
+    said = page.inner_text("#error")
+    assert "POST" not in said and "robotctl" not in said, said
+    assert sim.status()["navigation"]["state"] != "active"
     page.locator("#tabs button[data-tab=drive]").tap()
     screenshot(page, "phone-estop")
     page.answers.append(True)
     page.locator("#estop-release").tap()
     page.wait_for_selector("#estop-banner", state="hidden")
     assert sim.status()["estop"]["latched"] is False
+    page.wait_for_function("document.getElementById('pad').getAttribute('aria-disabled') === 'false'", timeout=5000)
+    page.locator("#tabs button[data-tab=places]").tap()
+    page.locator("#places li[data-name=kitchen] button.go").tap()
+    page.wait_for_function("document.getElementById('nav').dataset.state === 'active'", timeout=10000)
+    assert page.inner_text("#error") == "", "a goal that went through clears the refusal before it"
+    sim.post("/stop")
 
 
 def uncovered(page, selector):

@@ -44,7 +44,11 @@ class GoalGate:
             self._navigator.abandon(SWITCHED.format(_describe(status)), "a mode switch began as it was sent", seq)
 
     def _switching(self, status):
-        self._navigator.abandon(SWITCHED.format(_describe(status)), "the mode is switching")
+        """A switch begins: the goal under way is given up (``aborted``, saying why); a goal that
+        had ended is old news on the new map (the page said "arrived at kitchen" on a map without
+        a kitchen): set aside, ``/status`` says idle."""
+        if not self._navigator.abandon(SWITCHED.format(_describe(status)), "the mode is switching"):
+            self._navigator.set_aside()
 
     def _refusal(self, status):
         if status["mode"] == "idle":  # the owner's choice, not a failure: 409 like POST /pose

@@ -84,6 +84,8 @@ class Navigator:
         self._unacknowledged = None  # (seq, sent at) of a goal move_base has not answered yet
         self._ack_watch = None
         self._closed = False
+        self._aside = None  # a sentence (or "") while an ended goal is set aside: /status says idle
+        self.trips = None  # a TripRecord keeping the goal under way on disk, or None
         self._goal_lines = Throttled(log, "goal lines", burst=GOAL_LINES_BURST)  # a goal storm: not 300 lines/s
         node.when_ready(self._setup)
         node.when_lost(self._master_lost)
@@ -115,6 +117,7 @@ class Navigator:
                 self._seq += 1
                 seq = self._seq
                 self._goal, self._state, self._feedback_pose, self._message = goal, ACTIVE, None, None
+                self._aside = None
                 self._cond.notify_all()
             if self._client is not None:
                 _settle_last_goal(self._client)
@@ -129,6 +132,8 @@ class Navigator:
             else:
                 self._goal_pub.publish(pose_stamped(goal.pose, self._frame, rospy.Time.now()))
         self._goal_lines.info("goal %d: %s %s", seq, goal.target or "pose", goal.pose.as_dict())
+        if self.trips is not None:
+            self.trips.started(goal)
         return seq
 
     def _expect_acknowledgement(self, seq):
@@ -213,11 +218,20 @@ class Navigator:
         """True while the goal is under way and not yet asked to cancel."""
         return self._state == ACTIVE
 
+    def set_aside(self, why=None):
+        """An ended goal is old news (the mode switched, the server restarted): ``/status`` says
+        ``idle``, with ``why`` as its message, until the next goal. A goal under way is left alone."""
+        with self._cond:
+            if self._state not in UNDER_WAY:
+                self._aside = why or ""
+
     def status(self, reading=None):
         """The navigation part of ``/status``; ``reading``: the pose to measure from (else looked up)."""
         with self._cond:
             goal, state, seq, message = self._goal, self._state, self._seq, self._message
             message = message or self._unconfirmed_cancel()
+            if self._aside is not None:
+                goal, state, message = None, IDLE, self._aside or None
         return {
             "state": state,
             "message": message,
@@ -330,6 +344,8 @@ class Navigator:
                 if said:
                     self._message = said_sentence(state, self._goal.target if self._goal else None, said)
                 self._cond.notify_all()
+                if self.trips is not None:
+                    self.trips.ended()
 
     def _master_lost(self):
         """No master: move_base's word may never come, so a goal under way ends ``aborted`` now."""
@@ -346,6 +362,8 @@ class Navigator:
                 return False
             seq, self._state, self._message = self._seq, ABORTED, why
             self._cond.notify_all()
+            if self.trips is not None:
+                self.trips.ended()
         log.error("goal %d: aborted, %s", seq, reason)
         try:
             self._send_cancel()  # over the open connection: move_base must not resume it later

@@ -1,4 +1,7 @@
 // Calls to the robot's HTTP API: JSON in and out, the token in the Authorization header only.
+// Every call has a time limit: a link that silently stops delivering (a phone's Wi-Fi) gives
+// "no answer" after it, and a link that is down gives "not connected", both as an ApiError with a
+// code (status 0), so the page can say what happened to each command instead of "Failed to fetch".
 // When a call answers 401 the page asks for the token once (every call waiting on that answer
 // shares the one question), keeps it in localStorage on this device and tries the call again.
 
@@ -39,18 +42,42 @@ function askForToken(usedToken) {
   return asking;
 }
 
-/** fetch() with the token; on 401 ask once and retry once. Resolves to the Response. */
+export const CALL_TIMEOUT_MS = 4000;  // longer than any deadline the page gives a command (3 s)
+
+/** fetch() with the token; on 401 ask once and retry once. Resolves to the Response.
+ *  With `timeout` (ms), each attempt is given up after that long: ApiError "no_answer". */
 export async function authorisedFetch(path, options = {}) {
   const used = token;
-  const response = await fetch(path, Object.assign({}, options, {headers: authHeaders(options.headers)}));
+  const response = await timedFetch(path, options);
   if (response.status !== 401) return response;
   if (!(await askForToken(used))) return response;
-  return fetch(path, Object.assign({}, options, {headers: authHeaders(options.headers)}));
+  return timedFetch(path, options);
 }
 
-/** One API call: resolves to the parsed JSON body ({} for 204), rejects with ApiError. */
-export async function api(method, path, body) {
-  const options = {method, headers: {}};
+async function timedFetch(path, options) {
+  const init = Object.assign({}, options, {headers: authHeaders(options.headers)});
+  delete init.timeout;
+  if (!options.timeout) return fetch(path, init);
+  const abort = new AbortController();
+  if (options.signal) options.signal.addEventListener("abort", () => abort.abort());
+  init.signal = abort.signal;
+  const timer = setTimeout(() => abort.abort(), options.timeout);
+  try {
+    return await fetch(path, init);
+  } catch (e) {
+    if (abort.signal.aborted && !(options.signal && options.signal.aborted)) {
+      throw new ApiError(0, {error: "no_answer", message: "The robot did not answer in " + options.timeout / 1000 + " s."});
+    }
+    throw new ApiError(0, {error: "not_connected", message: "The robot is not connected."});
+  } finally {
+    clearTimeout(timer);
+  }
+}
+
+/** One API call: resolves to the parsed JSON body ({} for 204), rejects with ApiError.
+ *  Gives up after CALL_TIMEOUT_MS (or `timeout`) with ApiError "no_answer". */
+export async function api(method, path, body, timeout = CALL_TIMEOUT_MS) {
+  const options = {method, headers: {}, timeout};
   if (body !== undefined) {
     options.headers["Content-Type"] = "application/json";
     options.body = JSON.stringify(body);

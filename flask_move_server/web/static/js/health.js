@@ -19,7 +19,7 @@ async function examine(box) {
   status.textContent = box ? "Looking for the box…" : "Checking… (2 s)";
   for (const b of document.querySelectorAll("#tab-health button")) b.disabled = true;
   try {
-    show(await api("GET", "/diagnostics" + (box ? "?box=1" : "")));
+    show(await api("GET", "/diagnostics" + (box ? "?box=1" : ""), undefined, 60000));
   } catch (e) {
     status.dataset.level = "fail";
     status.textContent = e.message;

@@ -3,10 +3,13 @@
 // Reconnects by itself with back-off; tells the page when it is live or reconnecting, so the
 // page can disable the controls that would act on stale state, and re-read the state after
 // each reconnect. A server without /events (404) is polled through /status instead.
+// The robot sends a `clock` event every 2 s: no byte for IDLE_LIMIT_MS means the link is silent
+// (a Wi-Fi that stopped delivering closes no socket), and the page says so within seconds. The
+// clock events also tell the robot's clock, which motion commands' `valid_until` is set on.
 
 import {authorisedFetch, api} from "./api.js";
 
-const IDLE_LIMIT_MS = 35000;  // no byte for this long (the server sends a heartbeat every ~15 s): dead
+const IDLE_LIMIT_MS = 5000;  // no byte for this long (the robot sends its clock every 2 s): silent
 const BACKOFF_MS = [500, 1000, 2000, 4000, 5000];
 const POLL_MS = 200;
 const BUSY_POLL_MS = 30000;  // the robot has every stream it allows open: poll this long, then try again
@@ -55,6 +58,18 @@ export class Live {
     this.onState = () => {};
     this.onConnected = () => {};
     this.failures = 0;
+    this.offset = null;  // the robot's clock minus ours (s), the largest seen on this connection
+  }
+
+  /** Our best estimate of the robot's clock now (s), or null before the robot told it. */
+  robotNow() { return this.offset === null ? null : performance.now() / 1000 + this.offset; }
+
+  /** A reading of the robot's clock arrived: the least delayed one gives the largest offset. */
+  clockSample(now) {
+    if (typeof now !== "number") return;
+    const offset = now - performance.now() / 1000;
+    if (this.offset === null || offset > this.offset) this.offset = offset;
+    document.body.dataset.robotClock = "known";
   }
 
   on(kind, handler) { (this.handlers[kind] = this.handlers[kind] || []).push(handler); }
@@ -93,6 +108,8 @@ export class Live {
       }
       if (!response.ok || !response.body) return "ended";
       this.failures = 0;
+      this.offset = null;  // a new connection may be to a restarted robot: learn its clock again
+      document.body.dataset.robotClock = "";
       this.setState("live");
       const parser = new SseParser((type, data) => this.received(type, data));
       const reader = response.body.pipeThrough(new TextDecoderStream()).getReader();
@@ -112,6 +129,7 @@ export class Live {
   received(type, text) {
     let data;
     try { data = JSON.parse(text); } catch (e) { return; }
+    if (type === "clock") this.clockSample(data.now);
     this.emit(type, data);
   }
 
@@ -121,6 +139,8 @@ export class Live {
     for (let round = 0; performance.now() < until; round++) {
       try {
         const status = await api("GET", "/status");
+        if (this.state !== "polling") this.offset = null;
+        this.clockSample(status.clock);
         this.setState("polling");
         this.emit("pose", status.pose);
         this.emit("status", status);

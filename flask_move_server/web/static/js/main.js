@@ -5,17 +5,40 @@ import {Live} from "./live.js";
 import {MapView} from "./mapview.js";
 import {initPanels, showMode, loadMaps} from "./panels.js";
 import {initHealth} from "./health.js";
-import {report} from "./notice.js";
+import {report, clearError} from "./notice.js";
+import {StopSender} from "./stop.js";
 import {initPlaces, loadWaypoints, markPlace} from "./places.js";
 
 const $ = (id) => document.getElementById(id);
 const map = new MapView($("map"));
 const live = new Live();
+const stopping = new StopSender($("stop"));
 let mapVersion = null, mapEtag = null;
 
 // ---- errors and the status line -------------------------------------------------------
 
-export const call = (method, path, body) => api(method, path, body).catch((e) => { report(e); throw e; });
+/** An API call whose outcome the person sees: an error in words for people (`what` says what was
+ *  tried: "goal", "pose", …), and a success clears the error of the call before. */
+export const call = (method, path, body, what, timeout) => api(method, path, body, timeout).then(
+  (answer) => { clearError(); return answer; },
+  (e) => { report(e, what); throw e; });
+
+// How long a motion command may take to reach the robot; later, the robot refuses it (docs/api.md,
+// "Late commands"): a goal dragged during a Wi-Fi stall must not be driven when the link comes back.
+const GOAL_WINDOW_S = 3, TELEOP_WINDOW_S = 1;
+function within(seconds) {
+  const now = live.robotNow();
+  return now === null ? {} : {valid_until: Math.round((now + seconds) * 1000) / 1000};
+}
+/** Send the robot somewhere: `{name}` or `{x, y, yaw}`, refused by the robot if it arrives late. */
+export function sendGoal(where) {
+  if (latched()) {
+    report({code: "estop_latched"});
+    return Promise.reject(new Error("e-stop latched"));
+  }
+  stopping.cancel();
+  return call("POST", "/goto", Object.assign({}, where, within(GOAL_WINDOW_S)), "goal");
+}
 const quietly = (promise) => promise.catch(() => {});
 const buzz = () => { if (navigator.vibrate) navigator.vibrate(30); };  // a felt "sent" on phones that can
 
@@ -30,6 +53,7 @@ function showNavigation(nav) {
   } else if (state === "succeeded") text = "arrived at " + where;
   else if (state === "aborted" || state === "rejected") text = "failed: " + (nav.message || "move_base gave up on " + where);
   else if (state === "canceled") text = "cancelled";
+  else if (state === "idle" && nav.message) text = nav.message;
   $("nav-text").textContent = text;
   $("nav-distance").textContent = distance;
   box.dataset.state = state;
@@ -41,6 +65,10 @@ function showNavigation(nav) {
 
 function showStatus(status) {
   if (status.navigation) showNavigation(status.navigation);
+  if (status.teleop && status.teleop.active) {  // a goal the joystick cancelled is not news while driving
+    $("nav-text").textContent = "driving with the joystick";
+    $("nav").dataset.state = "teleop";
+  }
   const m = status.motors;
   if (m) {
     $("motors").dataset.left = String(m.left);
@@ -52,9 +80,11 @@ function showStatus(status) {
 function showEstop(estop) {
   $("estop-banner").hidden = !estop.latched;
   document.body.dataset.estop = estop.latched ? "1" : "0";
-  const by = {api: "from a page or robotctl", button: "by the e-stop button"}[estop.source] || estop.source;
+  const by = {api: "from a phone or a script", button: "by the e-stop button"}[estop.source] || estop.source;
   $("estop-why").textContent = estop.latched && by ? by : "";
+  enableControls();
 }
+const latched = () => document.body.dataset.estop === "1";
 
 // ---- the map, the waypoints ------------------------------------------------------------
 
@@ -87,11 +117,11 @@ async function loadMap(tries = 3) {
 
 
 map.onPress = (mode, x, y, yaw) => {
-  if (!isLive()) return;
+  if (!isLive()) { flashHint("The robot is not connected: nothing was sent."); return; }
   const pose = {x: round(x), y: round(y), yaw: round(yaw)};
   buzz();
-  if (mode === "go") quietly(call("POST", "/goto", pose));
-  else if (mode === "pose") quietly(call("POST", "/pose", pose).then(() => setGesture("go")));
+  if (mode === "go") quietly(sendGoal(pose));
+  else if (mode === "pose") quietly(call("POST", "/pose", pose, "pose").then(() => setGesture("go")));
   else if (mode === "mark") markPlace(pose.x, pose.y, pose.yaw).then(() => setGesture("go"));
 };
 const round = (v) => Math.round(v * 1000) / 1000;
@@ -137,13 +167,20 @@ function showConnection(state) {
   document.body.dataset.connection = state;
   $("conn").textContent = {live: "live", polling: "live (polling)", reconnecting: "reconnecting…",
                            unauthorised: "token needed"}[state] || state;
-  const off = !isLive();
-  map.offline = off;
+  map.offline = !isLive();
   showStaleNote();
+  enableControls();
+}
+
+/** Controls that act on the robot work only while it is connected; those that move it, only
+ *  while the e-stop is released too (greyed, so a press does not look as if it did something). */
+function enableControls() {
+  const off = !isLive(), still = off || latched();
   for (const el of document.querySelectorAll(".needs-live")) {
-    if (el.tagName === "BUTTON") el.disabled = off; else el.setAttribute("aria-disabled", String(off));
+    const disabled = el.classList.contains("moves") ? still : off;
+    if (el.tagName === "BUTTON") el.disabled = disabled; else el.setAttribute("aria-disabled", String(disabled));
   }
-  if (off) { joystick.release(); keys.release(); }
+  if (still) { joystick.release(); keys.release(); }
 }
 
 /** After every (re)connect: read the whole state again, never trusting what the page held. */
@@ -176,21 +213,23 @@ live.on("mode", (m) => { showMode(m); quietly(loadMaps()); quietly(loadMap()); }
 // Driving: one teleop request at a time (a slow link skips a beat rather than queueing them), and
 // a stop sent at once and again once a teleop still on its way has landed, which could otherwise
 // reach the robot after the stop and drive it on for the deadman time.
+// Each joystick command is refused by the robot if it arrives more than a second late.
 let teleopInFlight = null;
 function sendTeleop(command) {
   if (teleopInFlight) return;
-  const sent = teleopInFlight = call("POST", "/teleop", command);
+  stopping.cancel();
+  const sent = teleopInFlight = call("POST", "/teleop", Object.assign({}, command, within(TELEOP_WINDOW_S)), "teleop");
   sent.catch(() => {}).then(() => { if (teleopInFlight === sent) teleopInFlight = null; });
 }
 function stopDriving() {
-  quietly(call("POST", "/stop"));
-  if (teleopInFlight) teleopInFlight.catch(() => {}).then(() => quietly(call("POST", "/stop")));
+  const first = stopping.send();
+  if (teleopInFlight) teleopInFlight.catch(() => {}).then(() => first.then(() => stopping.send()));
 }
 const joystick = new Joystick($("pad"), $("knob"), {send: sendTeleop, stop: stopDriving});
-const keys = new KeyDrive({send: sendTeleop, stop: stopDriving, enabled: () => isLive()});
-$("stop").onclick = () => { buzz(); joystick.release(); keys.release(); quietly(call("POST", "/stop")); };
-$("cancel").onclick = () => quietly(call("POST", "/stop"));
-$("estop").onclick = () => quietly(call("POST", "/estop"));
+const keys = new KeyDrive({send: sendTeleop, stop: stopDriving, enabled: () => isLive() && !latched()});
+$("stop").onclick = () => { buzz(); joystick.release(); keys.release(); stopping.send(); };
+$("cancel").onclick = () => stopping.send();
+$("estop").onclick = () => quietly(call("POST", "/estop", undefined, "estop"));
 $("estop-release").onclick = () => {
   if (window.confirm("Release the e-stop? The robot can move again.")) quietly(call("POST", "/estop/release"));
 };
@@ -209,7 +248,7 @@ for (const tab of document.querySelectorAll("#tabs button")) {
 $("mode").onclick = () => flashHint($("mode").title || "");  // a phone has no hover: tap the mode for its message
 $("token").onclick = () => askTokenAgain().then(() => resync());
 initPanels({call, report, setGesture, isLive});
-initPlaces({call, isLive, map, buzz});
+initPlaces({call, sendGoal, isLive, map, buzz});
 initHealth();
 setGesture("go");
 showConnection("connecting");

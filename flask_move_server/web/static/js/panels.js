@@ -80,7 +80,7 @@ function button(label, className, onClick) {
 
 const quietly = (promise) => promise.catch(() => {});
 
-function switchTo(body) { return quietly(ctx.call("POST", "/mode", body).then(showMode)); }
+function switchTo(body) { return quietly(ctx.call("POST", "/mode", body, "mode").then(showMode)); }
 
 function useMap(name) { return switchTo({mode: "navigation", map: name}); }
 
@@ -95,12 +95,12 @@ async function saveMap() {
   if (!name) return;
   let body = {name, then: "navigation"};
   try {
-    await api("POST", "/maps", body);
+    await api("POST", "/maps", body, 60000);
   } catch (e) {
-    if (e.code !== "map_exists" && e.status !== 409) { ctx.report(e); return; }
+    if (e.code !== "map_exists" && e.status !== 409) { ctx.report(e, "save"); return; }
     if (!window.confirm("A map called " + name + " exists. Replace it?")) return;
     body = Object.assign(body, {overwrite: true});
-    await quietly(ctx.call("POST", "/maps", body));
+    await quietly(ctx.call("POST", "/maps", body, "save", 60000));
   }
   quietly(loadMaps());
   quietly(api("GET", "/mode").then(showMode));

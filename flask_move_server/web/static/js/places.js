@@ -4,7 +4,7 @@ import {api} from "./api.js";
 
 const $ = (id) => document.getElementById(id);
 const quietly = (promise) => promise.catch(() => {});
-let ctx = null;  // {call, isLive, map, buzz} from main.js
+let ctx = null;  // {call, sendGoal, isLive, map, buzz} from main.js
 
 let waypointLoads = 0;  // answers can cross (a change, its event, our own reload): the newest request wins
 let shownWaypoints = null;  // the list as drawn, as JSON
@@ -25,7 +25,7 @@ export async function loadWaypoints() {
 function placeRow(w) {
   const li = document.createElement("li");
   li.dataset.name = w.name;
-  li.append(button(w.name, "go needs-live", () => goTo(w.name)),
+  li.append(button(w.name, "go needs-live moves", () => goTo(w.name)),
     button("Rename", "quiet", () => renamePlace(w)), button("Delete", "quiet", () => deletePlace(w.name)));
   return li;
 }
@@ -35,12 +35,13 @@ function button(label, className, onClick) {
   b.type = "button";
   b.textContent = label;
   b.className = className;
-  b.disabled = className.includes("needs-live") && !ctx.isLive();
+  b.disabled = className.includes("needs-live") && !ctx.isLive() ||
+    className.includes("moves") && document.body.dataset.estop === "1";
   b.onclick = onClick;
   return b;
 }
 
-export const goTo = (name) => { ctx.buzz(); return quietly(ctx.call("POST", "/goto", {name})); };
+export const goTo = (name) => { ctx.buzz(); return quietly(ctx.sendGoal({name})); };
 
 /** A new waypoint under a name in use replaces that one: ask first (destructive). */
 function mayReplace(name) {
@@ -69,7 +70,7 @@ export async function markPlace(x, y, yaw) {
   quietly(loadWaypoints());
 }
 
-/** Wires the panel; `context`: {call, isLive, map, buzz} from main.js. */
+/** Wires the panel; `context`: {call, sendGoal, isLive, map, buzz} from main.js. */
 export function initPlaces(context) {
   ctx = context;
   ctx.map.onWaypoint = (name) => { if (ctx.isLive()) goTo(name); };
