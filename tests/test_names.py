@@ -186,3 +186,10 @@ def test_names_rule_is_one_text_shared_by_waypoints_and_maps():
     from flask_move_server.waypoints import NAME_RULE
 
     assert NAME_RULE == names.RULE and MAP_NAME_RULE.startswith(names.RULE)
+
+
+def test_a_map_yaml_names_its_image_readably_even_when_quoted(catalogue):
+    catalogue.save("'t Hüs", grid())  # a leading apostrophe: YAML needs the image's name quoted
+    text = open(os.path.join(catalogue.folder, "'t Hüs.yaml"), encoding="utf-8").read()
+    assert text.startswith("image: \"'t Hüs.pgm\"\n"), text
+    assert catalogue.load("'t Hüs").width == 4

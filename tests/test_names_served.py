@@ -172,8 +172,22 @@ def test_a_map_saved_renamed_and_used_under_unicode_names(sim):
     assert sim.call("GET", "/maps").json()["active"] == "Mum's room"
 
 
-def test_robotctl_lists_and_removes_unicode_maps(sim, capsys):
+def test_robotctl_commands_take_unicode_names(sim, capsys):
     assert robotctl(sim, "map", "list") == ExitStatus.OK
     assert "* Mum's room" in capsys.readouterr().out
     assert robotctl(sim, "map", "rm", "Mum's room") == ExitStatus.ERROR  # the map in use
     assert "Mum's room is the map in use" in capsys.readouterr().err
+    assert robotctl(sim, "pose", NFD_KUCHE) == ExitStatus.OK  # the map's waypoints: a copy of the first ones
+    assert robotctl(sim, "goto", NFD_KUCHE) == ExitStatus.OK
+    assert sim.status()["navigation"]["target"] == "Küche"
+    assert robotctl(sim, "stop") == ExitStatus.OK
+
+    assert robotctl(sim, "map", "start") == ExitStatus.OK
+    assert robotctl(sim, "map", "save", "台所") == ExitStatus.OK
+    assert "saved map 台所" in capsys.readouterr().out
+    assert "image: 台所.pgm\n" in (sim.folder / "maps" / "台所.yaml").read_text(encoding="utf-8")
+    assert robotctl(sim, "map", "rm", "台所") == ExitStatus.OK
+    assert "台所.yaml" not in os.listdir(str(sim.folder / "maps"))
+    assert robotctl(sim, "map", "use", "Mum’s room") == ExitStatus.NOT_FOUND
+    assert robotctl(sim, "map", "use", "Mum's room") == ExitStatus.OK
+    assert sim.call("GET", "/mode").json()["map"] == "Mum's room"
