@@ -12,12 +12,19 @@ SHOWN = 64  # characters of a name or value an error quotes back (the longest va
 
 
 def shown(value, limit=SHOWN):
-    """``value`` as an error quotes it, in JSON (text quoted, control characters escaped), cut to
+    """``value`` as an error quotes it, in JSON (text quoted, invisible characters escaped), cut to
     ``limit`` characters and '…': a 100 KB name sent is not a 100 KB answer, nor log line."""
     if isinstance(value, str):
-        return json.dumps(value[:limit]) + ("\u2026" if len(value) > limit else "")
-    text = json.dumps(value, default=repr)
+        return _readable_json(value[:limit]) + ("\u2026" if len(value) > limit else "")
+    text = _readable_json(value, default=repr)
     return text if len(text) <= limit else text[:limit] + "\u2026"
+
+
+def _readable_json(value, **options):
+    """JSON with letters of every language as they are ("Küche", not "K\\u00fcche"), and only the
+    characters that print nothing (controls, line separators, bidi overrides) escaped."""
+    text = json.dumps(value, ensure_ascii=False, **options)
+    return "".join(c if c.isprintable() else json.dumps(c)[1:-1] for c in text)
 
 
 class MoveServerError(Exception):

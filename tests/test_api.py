@@ -301,6 +301,6 @@ def test_over_real_http(app, ready_robot, move_base):
         r = requests.post(url + "/goto", data=b"x" * 100000, timeout=10)
         assert r.status_code == 413 and r.json()["error"] == "body_too_large"
         r = requests.get(url + "/nothing", timeout=10)
-        assert r.status_code == 404 and r.headers["Content-Type"] == "application/json"
+        assert r.status_code == 404 and r.headers["Content-Type"] == "application/json; charset=utf-8"
         assert json.loads(r.text)["status"] == "error"
         assert requests.get(url + "/health", timeout=10).json()["move_base"] == "ready"

@@ -107,7 +107,7 @@ def test_one_stream_more_than_max_streams_is_a_json_503_and_a_closed_one_gives_i
         first, second = EventReader(url, kinds=ROBOT_STATE), EventReader(url, kinds=ROBOT_STATE)
         third = requests.get(url + "/events", timeout=10)
         assert third.status_code == 503
-        assert third.headers["Content-Type"] == "application/json"
+        assert third.headers["Content-Type"] == "application/json; charset=utf-8"
         assert third.json()["error"] == "too_many_streams"
         first.close()  # the page went away: noticed without waiting for a heartbeat
         wait_for(lambda: _opens(url), timeout=10, message="the closed stream's place to be free again")

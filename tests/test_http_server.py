@@ -56,7 +56,7 @@ def served(app, robot_config):
 def test_errors_waitress_answers_before_the_app_are_json(served, request_bytes, status, code):
     got, headers, body = raw(served, request_bytes)
     assert got == status
-    assert headers["Content-Type"] == "application/json"
+    assert headers["Content-Type"] == "application/json; charset=utf-8"
     answer = json.loads(body)
     assert answer["status"] == "error" and answer["error"] == code and answer["message"].endswith(".")
 

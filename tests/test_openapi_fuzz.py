@@ -78,7 +78,7 @@ def _check(case, response, documented, negative):
     said = "{} {} -> {}: {}".format(case.method, case.formatted_path, response.status_code, text)
     assert response.status_code < 500, said
     if response.status_code >= 400:
-        assert response.headers.get("Content-Type") == "application/json", said
+        assert response.headers.get("Content-Type") == "application/json; charset=utf-8", said
         body = response.json()
         assert body["status"] == "error" and body["error"] and body["message"], said
     if not negative:

@@ -87,7 +87,7 @@ def test_sigterm_stops_the_robot_first_and_a_waiting_goto_answers_503(tmp_path):
         waiter.join(10)
         assert waiter.error is None, "the waiting client lost its connection: {!r}".format(waiter.error)
         assert waiter.response.status_code == 503
-        assert waiter.response.headers["Content-Type"] == "application/json"
+        assert waiter.response.headers["Content-Type"] == "application/json; charset=utf-8"
         assert waiter.response.json()["error"] == "shutting_down"
         stopped = server.find(r"robot stopped .* motors left (\S+) right (\S+)")
         assert stopped and float(stopped.group(1)) == 0.0 and float(stopped.group(2)) == 0.0

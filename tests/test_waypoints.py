@@ -75,7 +75,8 @@ def test_unknown_name_suggests_close_names(seed_file):
 
 @pytest.mark.parametrize("name", [
     "", "a/b", ".", "..", "a..b", "../etc", "tab\there", "nl\n", "nul\x00", "bell\x07", " lead", "trail ",
-    "x" * 65, "x" * 300, "ünïcode", "semi;colon", 42, None,
+    "x" * 65, "x" * 300, "semi;colon", "back\\slash", "per%2Fcent", "what?", "hash#tag", "zero\u200bwidth",
+    "\u0301accent first", "bidi\u202eoverride", "line\u2028separator", "robot \U0001f916", 42, None,
 ])
 def test_invalid_names_are_refused_and_change_nothing(seed_file, name):
     store = WaypointStore(seed_file)

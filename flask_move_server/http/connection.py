@@ -47,7 +47,7 @@ class JsonErrorTask(ErrorTask):
         message = template.format(detail=str(error.body).rstrip("."), limit=limit)
         body = json.dumps({"status": "error", "error": code, "message": message}).encode("utf-8")
         self.status = "{} {}".format(error.code, error.reason)
-        self.response_headers.append(("Content-Type", "application/json"))
+        self.response_headers.append(("Content-Type", "application/json; charset=utf-8"))
         self.response_headers.append(("Connection", "close"))  # waitress closes after an error
         self.close_on_finish = True
         self.channel.refused = True

@@ -6,9 +6,12 @@ made elsewhere can be dropped in) and, beside them, its waypoints
 :class:`~flask_move_server.waypoints.store.WaypointStore`). A map exists when its
 YAML does: :func:`mapfile.save` renames the YAML into place last.
 
-Names follow the waypoint naming rule, and since a name becomes a file name,
-also never start with '.' (hidden files, the temporaries of a save) nor end in
-'.waypoints' (it would be another map's waypoints file). Leftovers of a killed
+Names follow the waypoint naming rule (:mod:`flask_move_server.names`: letters of any
+language, in NFC), and since a name becomes a file name, also never start with '.'
+(hidden files, the temporaries of a save), nor end in '.waypoints' (it would be another
+map's waypoints file), nor take more than :data:`MAX_NAME_BYTES` bytes of UTF-8 (a file
+name holds 255, and the temporaries add their suffixes). Two maps' names never differ only
+in case or normalisation: a folder on FAT, exFAT or macOS would hold them as one file. Leftovers of a killed
 save (``.~NAME.*.part``) are never listed; :meth:`MapCatalogue.remove_leftovers`
 deletes them. Mutations take one lock, so two requests cannot interleave a
 rename and a save. Pure: no rospy, no Flask.
@@ -21,9 +24,9 @@ import threading
 from dataclasses import dataclass
 
 from flask_move_server import bounded_yaml
+from flask_move_server import names as naming
 from flask_move_server.errors import (
     BadMapName,
-    BadWaypoint,
     ConfigError,
     MapExists,
     MapFileError,
@@ -34,23 +37,25 @@ from flask_move_server.errors import (
 from flask_move_server.maps import mapfile
 from flask_move_server.maps.file_cache import FileVersionCache
 from flask_move_server.sim import occupancy
-from flask_move_server.waypoints import NAME_RULE, check_name, suggest
+from flask_move_server.waypoints import NAME_RULE, suggest
 from flask_move_server.waypoints import locked_file as waypoints_file
 from flask_move_server.waypoints.yaml_format import entries_of
 
 log = logging.getLogger(__name__)
 WAYPOINTS_SUFFIX = ".waypoints.yaml"
+MAX_NAME_BYTES = 200  # the longest derived file name, ".NAME.waypoints.yaml.bak.XXXXXXXX.tmp", adds 33
 MAP_NAME_RULE = NAME_RULE + ", not starting with '.' and not ending in '.waypoints'"
 
 
 def check_map_name(name):
-    """Return ``name`` if it can name a map (and its files), else BadMapName quoting an excerpt of it."""
-    try:
-        check_name(name)
-    except BadWaypoint:
-        raise BadMapName("Invalid map name {}: use {}.".format(shown(name), MAP_NAME_RULE)) from None
-    if name.startswith(".") or name.lower().endswith(".waypoints"):
+    """``name`` in NFC if it can name a map (and its files), else BadMapName quoting an excerpt of it."""
+    name = naming.checked(name, "map name", BadMapName)
+    if name.startswith(".") or naming.same_name_key(name).endswith(".waypoints"):
         raise BadMapName("Invalid map name {}: use {}.".format(shown(name), MAP_NAME_RULE))
+    if len(name.encode("utf-8")) > MAX_NAME_BYTES:
+        raise BadMapName("The map name {} is too long for a file name: {} bytes in UTF-8, at most {} (letters "
+                         "of some scripts take 4 bytes each); use a shorter name.".format(
+                             shown(name), len(name.encode("utf-8")), MAX_NAME_BYTES))
     return name
 
 
@@ -100,7 +105,7 @@ class MapCatalogue:
     # reading --------------------------------------------------------------
 
     def names(self):
-        """The saved maps' names, sorted; files that cannot be a map name are skipped."""
+        """The saved maps' names, sorted; files that cannot be a map name (or not in NFC) are skipped."""
         try:
             files = os.listdir(self.folder)
         except FileNotFoundError:
@@ -110,8 +115,10 @@ class MapCatalogue:
         names = []
         for file in files:
             if file.endswith(".yaml") and not file.endswith(WAYPOINTS_SUFFIX):
+                stem = file[:-len(".yaml")]
                 try:
-                    names.append(check_map_name(file[:-len(".yaml")]))
+                    if check_map_name(stem) == stem:
+                        names.append(stem)
                 except BadMapName:
                     continue
         return sorted(names)
@@ -134,6 +141,7 @@ class MapCatalogue:
         The YAML and the image's header are read once per version of the files; a broken
         map is logged once per version too, and listed with its ``problem``.
         """
+        name = check_map_name(name)
         path = self._existing(name)
         try:
             modified = _iso_time(os.stat(path).st_mtime)
@@ -147,6 +155,7 @@ class MapCatalogue:
 
     def version(self, name):
         """A version of the stored map for an ETag: its YAML's and PGM's change times and sizes."""
+        name = check_map_name(name)
         parts = [name]
         for path in (self._existing(name), os.path.join(self.folder, name + ".pgm")):
             try:
@@ -158,6 +167,7 @@ class MapCatalogue:
 
     def load(self, name):
         """The map's :class:`~flask_move_server.maps.mapfile.Grid`; MapFileError if its files are broken."""
+        name = check_map_name(name)
         path = self._existing(name)
         try:
             _read_meta(path)
@@ -184,7 +194,7 @@ class MapCatalogue:
 
     def save(self, name, grid, overwrite=False):
         """Save ``grid`` as map ``name`` (atomically; MapExists unless ``overwrite``); its MapInfo."""
-        check_map_name(name)
+        name = check_map_name(name)
         with self._lock:
             self.refuse_case_twin(name)
             self._make_folder()
@@ -192,13 +202,14 @@ class MapCatalogue:
         return self.describe(name)
 
     def refuse_case_twin(self, name):
-        """MapExists naming the saved map whose name differs from ``name`` only in case.
+        """MapExists naming the saved map whose name differs from ``name`` only in case (or normalisation).
 
         FAT, exFAT (a USB stick) and macOS fold case: ``Base.yaml`` would be ``base.yaml``
-        there, so map names are unique whatever their case.
+        there (and macOS ``Küche`` composed or not), so map names are unique whatever their case.
         """
+        name, key = check_map_name(name), naming.same_name_key(name)
         for saved in self.names():
-            if saved != name and saved.casefold() == name.casefold():
+            if saved != name and naming.same_name_key(saved) == key:
                 raise MapExists("A map named {!r} is saved, and map names must differ in more than case (a "
                                 "FAT, exFAT or macOS folder cannot hold both); pick another name (to change only "
                                 "the case of a map's name, rename it to another name first).".format(saved))
@@ -209,7 +220,7 @@ class MapCatalogue:
         Renaming a map to its own name changes nothing (its MapInfo); to a name that differs from
         a saved one (itself included) only in case, MapExists.
         """
-        check_map_name(new)
+        old, new = check_map_name(old), check_map_name(new)
         with self._lock:
             old_yaml = self._existing(old)
             if new == old:
@@ -258,6 +269,7 @@ class MapCatalogue:
         A broken map can be deleted too; an image the YAML names under another name is left alone
         (but for the temporary name an interrupted save left it naming).
         """
+        name = check_map_name(name)
         with self._lock:
             path = self._existing(name)
             self._refuse_active(name, active, "deleted")

@@ -117,7 +117,7 @@ def _yaml_scalar(text):
             return text
     except yaml.YAMLError:
         pass
-    return json.dumps(text)
+    return json.dumps(text, ensure_ascii=False)  # a name in any language stays readable
 
 
 def save(folder, name, grid, overwrite=False):

@@ -136,7 +136,8 @@ class MapService:
         return {"maps": [info.as_dict() for info in self.catalogue.list()], "active": self.active_map}
 
     def describe(self, name):
-        return dict(self.catalogue.describe(name).as_dict(), active=name == self.active_map)
+        info = self.catalogue.describe(name)
+        return dict(info.as_dict(), active=info.name == self.active_map)
 
     def saved_image(self, name):
         """``(etag, MapImage)`` of a saved map (rendered once per file version)."""
@@ -167,7 +168,7 @@ class MapService:
         files are written atomically; when adopting the waypoints fails, a map new under
         this name is deleted again, so nothing is left half-saved.
         """
-        check_map_name(name)
+        name = check_map_name(name)
         self._require_mapping()
         if then and not self._switches_modes():
             raise ModesOff("This server does not start the navigation stack (modes.stack: none), so it cannot "

@@ -28,7 +28,7 @@ def waypoint_pose(path, name, map_name=None):
     ``map_name``: the map switched to, whose waypoints are not those ``/waypoints`` serves yet,
     so the error names that map and its waypoints (the served ones may well hold ``name``).
     """
-    check_name(name)
+    name = check_name(name)
     waypoints = _waypoints(path)
     if name not in waypoints:
         error = UnknownWaypoint(name, suggest(name, waypoints))

@@ -12,6 +12,7 @@ from typing import Optional
 
 from flask_move_server.errors import BadMapName, BadRequest, MapFileError, UnknownMap, shown
 from flask_move_server.geometry import Pose2D
+from flask_move_server.maps.catalogue import check_map_name
 from flask_move_server.modes import relocalizing
 
 log = logging.getLogger(__name__)
@@ -76,7 +77,8 @@ class Targets:
             raise BadRequest("Only the navigation mode takes a 'map' and a 'pose'.")
         yaml_path = None
         if map_name is not None:
-            yaml_path = self.catalogue.yaml_path(map_name)  # BadMapName for a name no map can have
+            map_name = check_map_name(map_name)  # in NFC; BadMapName for a name no map can have
+            yaml_path = self.catalogue.yaml_path(map_name)
             if not os.path.isfile(yaml_path):
                 raise self._unknown(map_name)
             self._refuse_broken(map_name)

@@ -18,6 +18,7 @@ import time
 
 from flask_move_server.errors import ClientError, MoveServerError, WaypointFileError
 from flask_move_server.robotctl.api import ExitStatus
+from flask_move_server.robotctl.text import tolerant_output
 
 NODE_NAME = "record_waypoints"
 
@@ -54,6 +55,7 @@ def _main(argv):
     from flask_move_server.ros import master
 
     argv = sys.argv[1:] if argv is None else list(argv)
+    tolerant_output()
     ours, _ = split_ros_args(argv)  # name:=value remaps are rospy's (it reads sys.argv)
     args = parse_args(ours)
     if master.identity("/" + NODE_NAME, timeout=2.0) is None:

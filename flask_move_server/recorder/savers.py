@@ -9,7 +9,7 @@ one writer when it answers; otherwise the file is written through the same
 
 from flask_move_server.errors import BadWaypoint, ClientError, WaypointFileError
 from flask_move_server.robotctl.api import ExitStatus, RobotClient, waypoint_path
-from flask_move_server.waypoints import make_waypoint
+from flask_move_server.waypoints import check_name, make_waypoint
 from flask_move_server.waypoints.store import WaypointStore
 
 
@@ -57,6 +57,7 @@ class ServerSaver:
 
     def rename(self, old, new):
         """The API has no rename: add the new name, then remove the old one."""
+        old, new = check_name(old), check_name(new)
         if old == new:
             return
         current = self.client.get(waypoint_path(old))

@@ -12,6 +12,7 @@ import re
 import shlex
 
 from flask_move_server.errors import BadRequest, MoveServerError, UnknownWaypoint
+from flask_move_server.robotctl.text import columns, padded
 from flask_move_server.waypoints import check_name, make_waypoint, suggest
 
 HELP = """\
@@ -21,7 +22,7 @@ Mark places for the robot:
   list                 the waypoints       rename OLD NEW    give a waypoint another name
   delete NAME          remove one          undo              revert the last change
   help                 this text           quit (or Ctrl-C)  leave; everything is saved already
-Names with spaces: quote them in commands (rename "living room" lounge)."""
+Names with spaces: quote them in commands (rename "living room" "Mum's room")."""
 
 COMMANDS = ("list", "ls", "rename", "mv", "delete", "rm", "undo", "help", "?", "quit", "exit", "here", "save")
 _AUTO_NAME = re.compile(r"wp(\d+)$")
@@ -109,20 +110,21 @@ class Session:
     def save(self, name, pose, how):
         """Save ``pose`` as waypoint ``name`` (new or replacing), remembering how to undo it."""
         waypoint = make_waypoint(name, pose.x, pose.y, pose.yaw)
-        before = {wp.name: wp for wp in self.saver.all()}.get(name)
+        before = {wp.name: wp for wp in self.saver.all()}.get(waypoint.name)
         self.saver.put(waypoint)
-        undo = ("put", before) if before else ("delete", name)
+        undo = ("put", before) if before else ("delete", waypoint.name)
         self._changed("{} {}".format("replaced" if before else "saved", name), undo)
         self.say("{} {} at {} ({}), in {}.".format(
             "Replaced" if before else "Saved", name, _where(pose), how, self.saver.where))
 
     def rename(self, old, new):
-        check_name(new)
+        old, new = check_name(old), check_name(new)
         self.saver.rename(old, new)
         self._changed("renamed {} to {}".format(old, new), ("rename", new, old))
         self.say("Renamed {} to {}.".format(old, new))
 
     def delete(self, name):
+        name = check_name(name)
         known = {wp.name: wp for wp in self.saver.all()}
         if name not in known:
             raise UnknownWaypoint(name, suggest(name, known))
@@ -149,10 +151,10 @@ class Session:
         waypoints = self.saver.all()
         if not waypoints:
             return self.say("No waypoints yet in {}.".format(self.saver.where))
-        width = max(len(wp.name) for wp in waypoints)
+        width = max(columns(wp.name) for wp in waypoints)
         for wp in waypoints:
-            self.say("  {:<{w}}  x {:7.2f}  y {:7.2f}  yaw {:6.2f} ({:4.0f} deg)".format(
-                wp.name, wp.x, wp.y, wp.yaw, math.degrees(wp.yaw), w=width))
+            self.say("  {}  x {:7.2f}  y {:7.2f}  yaw {:6.2f} ({:4.0f} deg)".format(
+                padded(wp.name, width), wp.x, wp.y, wp.yaw, math.degrees(wp.yaw)))
         return None
 
     def next_auto_name(self):
@@ -175,9 +177,16 @@ class Session:
 
 
 def _split(line):
+    """The words of ``line``, quoted ones whole; an apostrophe in a name (Mum's room) is no quote."""
     try:
         return shlex.split(line) or [line]
-    except ValueError:  # an unbalanced quote: take the line as it is
+    except ValueError:  # an unbalanced quote, as an apostrophe is: only "..." quotes then
+        pass
+    words = shlex.shlex(line, posix=True)
+    words.quotes, words.escape, words.whitespace_split, words.commenters = '"', "", True, ""
+    try:
+        return list(words) or [line]
+    except ValueError:  # an unbalanced " too: take the line as it is
         return line.split()
 
 

@@ -8,6 +8,7 @@ command-line tools print one line and exit, never a traceback.
 
 import json
 import socket
+import unicodedata
 from urllib.parse import quote, urlsplit, urlunsplit
 
 import requests
@@ -44,7 +45,13 @@ _BY_HTTP_STATUS = {
 
 def waypoint_path(name):
     """The API path of waypoint ``name`` (spaces and the like escaped)."""
-    return "/waypoints/" + quote(name, safe="")
+    return name_path("/waypoints/", name)
+
+
+def name_path(prefix, name):
+    """``prefix`` and ``name`` in NFC, percent-encoded as UTF-8 ("Küche": ``K%C3%BCche``, whatever
+    the terminal composed), with nothing left that a URL would read as a separator."""
+    return prefix + quote(unicodedata.normalize("NFC", name), safe="")
 
 
 class RobotClient:
@@ -192,4 +199,4 @@ def _connection_reason(exc):
 
 def dumps(data):
     """Pretty JSON for ``--json`` output."""
-    return json.dumps(data, indent=2, sort_keys=False)
+    return json.dumps(data, indent=2, sort_keys=False, ensure_ascii=False)

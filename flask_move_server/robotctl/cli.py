@@ -20,7 +20,14 @@ from flask_move_server.robotctl import doctor as client_doctor
 from flask_move_server.robotctl import maps as client_maps
 from flask_move_server.robotctl import modes as client_modes
 from flask_move_server.robotctl.api import DEFAULT_TIMEOUT, DEFAULT_URL, ExitStatus, RobotClient, dumps, waypoint_path
-from flask_move_server.robotctl.text import LiveLine, describe_status, progress, waypoint_table, xy_yaw
+from flask_move_server.robotctl.text import (
+    LiveLine,
+    describe_status,
+    progress,
+    tolerant_output,
+    waypoint_table,
+    xy_yaw,
+)
 
 POLL_PERIOD = 0.5  # s between GET /status while `goto --wait` follows a goal
 
@@ -270,6 +277,7 @@ def _say(text, stream=None):
 def main(argv=None):
     """Run one robotctl command; returns the exit status."""
     argv = sys.argv[1:] if argv is None else list(argv)
+    tolerant_output()
     try:
         args = build_parser().parse_args(argv)
     except SystemExit as exc:  # --help, --version, usage errors

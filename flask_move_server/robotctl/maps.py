@@ -7,18 +7,18 @@ commands (``map start``, ``map use``) join the same ``map`` parser.
 
 import contextlib
 import sys
-from urllib.parse import quote
 
 from flask_move_server.errors import ClientError
 from flask_move_server.robotctl import modes as client_modes
-from flask_move_server.robotctl.api import ExitStatus
+from flask_move_server.robotctl.api import ExitStatus, name_path
+from flask_move_server.robotctl.text import columns, padded
 
 SAVE_TIMEOUT = 60.0  # s: the server waits up to maps.save_timeout (10 s) for a map, then writes it
 
 
 def map_path(name):
     """The API path of map ``name`` (spaces and the like escaped)."""
-    return "/maps/" + quote(name, safe="")
+    return name_path("/maps/", name)
 
 
 def cmd_map(client, args):
@@ -93,13 +93,13 @@ ACTIONS = {"save": cmd_save, "list": cmd_list, "rm": cmd_rm, "start": client_mod
 
 def map_table(maps, active=None):
     """Aligned rows: name (``*`` for the map in use), size in metres, waypoints, last change."""
-    width = max(4, max(len(m["name"]) for m in maps))
-    rows = ["  {:<{w}}  {:>15}  {:>9}  {}".format("NAME", "SIZE [m]", "WAYPOINTS", "MODIFIED", w=width)]
+    width = max(4, max(columns(m["name"]) for m in maps))
+    rows = ["  {}  {:>15}  {:>9}  {}".format(padded("NAME", width), "SIZE [m]", "WAYPOINTS", "MODIFIED")]
     for m in maps:
         mark = "*" if m["name"] == active else " "
         size = m.get("problem") and "broken" or _size(m)
-        rows.append("{} {:<{w}}  {:>15}  {:>9}  {}".format(mark, m["name"], size, m.get("waypoints", 0),
-                                                             m.get("modified", ""), w=width))
+        rows.append("{} {}  {:>15}  {:>9}  {}".format(mark, padded(m["name"], width), size, m.get("waypoints", 0),
+                                                       m.get("modified", "")))
     return rows
 
 

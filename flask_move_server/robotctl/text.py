@@ -6,6 +6,8 @@ requests are made (and be tested without a robot).
 """
 
 import math
+import sys
+import unicodedata
 
 
 def progress(name, nav):
@@ -112,9 +114,28 @@ def xy_yaw(pose):
 
 def waypoint_table(waypoints):
     """Aligned rows: name, x, y, yaw (rad and degrees)."""
-    width = max(4, max(len(wp["name"]) for wp in waypoints))
-    rows = ["{:<{w}}  {:>8}  {:>8}  {:>7}  {:>5}".format("NAME", "X [m]", "Y [m]", "YAW", "[deg]", w=width)]
+    width = max(4, max(columns(wp["name"]) for wp in waypoints))
+    rows = ["{}  {:>8}  {:>8}  {:>7}  {:>5}".format(padded("NAME", width), "X [m]", "Y [m]", "YAW", "[deg]")]
     for wp in waypoints:
-        rows.append("{:<{w}}  {:>8.2f}  {:>8.2f}  {:>7.2f}  {:>5.0f}".format(
-            wp["name"], wp["x"], wp["y"], wp["yaw"], math.degrees(wp["yaw"]), w=width))
+        rows.append("{}  {:>8.2f}  {:>8.2f}  {:>7.2f}  {:>5.0f}".format(
+            padded(wp["name"], width), wp["x"], wp["y"], wp["yaw"], math.degrees(wp["yaw"])))
     return rows
+
+
+def tolerant_output():
+    """Let a terminal that cannot show a name ("Küche" in an ASCII or Latin-1 locale) get ``K\\xfcche``
+    rather than a crash: stdout's unencodable characters are escaped, as stderr's already are."""
+    reconfigure = getattr(sys.stdout, "reconfigure", None)
+    if reconfigure is not None:
+        reconfigure(errors="backslashreplace")
+
+
+def columns(text):
+    """How many terminal columns ``text`` takes: a wide letter (台所) two, an accent that combines none."""
+    return sum(0 if unicodedata.category(c) in ("Mn", "Me") else 2 if unicodedata.east_asian_width(c) in "WF" else 1
+               for c in text)
+
+
+def padded(text, width):
+    """``text`` and the spaces that make it ``width`` terminal columns wide (names line up in any script)."""
+    return text + " " * max(0, width - columns(text))

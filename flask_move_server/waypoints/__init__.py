@@ -8,18 +8,16 @@ coordinates are validated here once, for the HTTP API, the file and the recorder
 
 import difflib
 import math
-import re
 from dataclasses import dataclass
 
+from flask_move_server import names
 from flask_move_server.errors import BadWaypoint, shown
 
-NAME_RULE = ("1 to 64 letters, digits, '_', '-', '.' or spaces, not starting or ending with a space, "
-             "without '..' and not '.' alone")
+NAME_RULE = names.RULE  # one rule for every name a person gives: see flask_move_server.names
 # Bounds far beyond any building, but small enough that every formula on a pose stays finite and
 # exact (1e308 overflows distances): x, y in metres, yaw in radians.
 POSITION_LIMIT = 1e6
 YAW_LIMIT = 1e3
-_NAME_RE = re.compile(r"[A-Za-z0-9_. -]{1,64}")
 
 
 @dataclass(frozen=True)
@@ -36,13 +34,8 @@ class Waypoint:
 
 
 def check_name(name):
-    """Return ``name`` if it is a valid waypoint name, else raise BadWaypoint."""
-    if not isinstance(name, str):
-        raise BadWaypoint("A waypoint name must be text, got {}.".format(shown(name)))
-    # "." and ".." are path segments: clients drop them from a URL, so they could not be deleted.
-    if not _NAME_RE.fullmatch(name) or name != name.strip(" ") or ".." in name or name == ".":
-        raise BadWaypoint("Invalid waypoint name {}: use {}.".format(shown(name), NAME_RULE))
-    return name
+    """``name`` in NFC (the form it is kept and compared in) if it is a valid waypoint name, else BadWaypoint."""
+    return names.checked(name, "waypoint name", BadWaypoint)
 
 
 def check_coordinate(label, value, limit=POSITION_LIMIT):
@@ -61,19 +54,18 @@ def check_coordinate(label, value, limit=POSITION_LIMIT):
 
 
 def make_waypoint(name, x, y, yaw):
-    """Build a validated :class:`Waypoint`."""
-    check_name(name)
+    """Build a validated :class:`Waypoint` (its name in NFC)."""
     return Waypoint(
-        name,
+        check_name(name),
         check_coordinate("x", x),
         check_coordinate("y", y),
         check_coordinate("yaw", yaw, YAW_LIMIT),
     )
 
 
-def suggest(name, names, n=3):
-    """Known names close to ``name``, best first (for 'did you mean')."""
-    folded = {k.lower(): k for k in names}
-    exact = [folded[name.lower()]] if isinstance(name, str) and name.lower() in folded else []
-    close = difflib.get_close_matches(str(name), list(names), n=n, cutoff=0.6)
+def suggest(name, names_known, n=3):
+    """Known names close to ``name``, best first (for 'did you mean'): one differing only in case first."""
+    key = names.same_name_key(name) if isinstance(name, str) else None
+    exact = [k for k in names_known if names.same_name_key(k) == key][:1]
+    close = difflib.get_close_matches(str(name), list(names_known), n=n, cutoff=0.6)
     return list(dict.fromkeys(exact + close))[:n]

@@ -99,8 +99,8 @@ class WaypointStore:
         return found
 
     def get(self, name):
-        """The waypoint called ``name``; UnknownWaypoint with close names if none."""
-        check_name(name)
+        """The waypoint called ``name`` (in any Unicode normal form); UnknownWaypoint with close names if none."""
+        name = check_name(name)
         with self._lock:
             self._refresh()
             try:
@@ -126,7 +126,7 @@ class WaypointStore:
 
     def delete(self, name):
         """Remove the waypoint ``name``. Saved before returning."""
-        check_name(name)
+        name = check_name(name)
         with self._edit() as waypoints:
             if name not in waypoints:
                 raise UnknownWaypoint(name, suggest(name, waypoints))
@@ -134,7 +134,7 @@ class WaypointStore:
 
     def rename(self, old, new):
         """Give waypoint ``old`` the name ``new``, keeping its place in the file."""
-        check_name(new)
+        old, new = check_name(old), check_name(new)
         with self._edit() as waypoints:
             if old not in waypoints:
                 raise UnknownWaypoint(old, suggest(old, waypoints))

@@ -28,7 +28,7 @@ from flask_move_server.waypoints import (
     safe_yaml,
 )
 
-_PLAIN_KEY_RE = re.compile(r"[A-Za-z_][A-Za-z0-9_-]*")
+_PLAIN_KEY_RE = re.compile(r"[^\W\d][\w-]*")  # a letter (any script) or '_', then letters, digits, '_', '-'
 _BOUNDS = (("x", POSITION_LIMIT), ("y", POSITION_LIMIT), ("yaw", YAW_LIMIT))
 
 
@@ -74,18 +74,22 @@ def waypoints_of(entries, source):
     """``{name: Waypoint}`` of a raw ``waypoints:`` mapping; WaypointFileError saying the bad entry's line."""
     waypoints = {}
     for name, entry in (entries or {}).items():
+        where = entries.where(name) if isinstance(entries, Entries) else ""
         try:
-            waypoints[name] = _entry(name, entry)
+            waypoint = _entry(name, entry)
         except BadWaypoint as exc:
-            where = entries.where(name) if isinstance(entries, Entries) else ""
             raise WaypointFileError("{}{}: {}".format(source, where, exc))
+        if waypoint.name in waypoints:  # "Küche" typed twice, composed two ways: one name in NFC
+            raise WaypointFileError("{}{}: a name appears twice (written with its accents composed differently)"
+                                    .format(source, where))
+        waypoints[waypoint.name] = waypoint
     return waypoints
 
 
 def _entry(name, entry):
     """The Waypoint of one entry; BadWaypoint saying what is wrong without quoting it (the file's text)."""
     try:
-        check_name(name)
+        name = check_name(name)
     except BadWaypoint:
         raise BadWaypoint("Invalid waypoint name: use {}.".format(NAME_RULE))
     if isinstance(entry, dict) and set(entry) == {"x", "y", "yaw"}:
@@ -114,7 +118,7 @@ def dump(waypoints):
 def _key(name):
     if _PLAIN_KEY_RE.fullmatch(name) and yaml.safe_load(name) == name:
         return name
-    return json.dumps(name)  # a JSON string is a valid YAML double-quoted scalar
+    return json.dumps(name, ensure_ascii=False)  # a JSON string is a valid YAML double-quoted scalar
 
 
 def _number(value):

@@ -81,6 +81,10 @@ def create_app(config, robot, store, token=None, events=None, modes=None, maps=N
     app.url_map.merge_slashes = False  # /waypoints//a is the name "/a" (a 400), not an HTML redirect
     app.config["MAX_CONTENT_LENGTH"] = config.server.max_body_bytes
     app.json.sort_keys = False
+    # Names as typed ("Küche", not "K\u00fcche"), in UTF-8 said out loud: clients that guess
+    # otherwise (Windows PowerShell 5's Invoke-RestMethod reads Latin-1) read them right too.
+    app.json.ensure_ascii = False
+    app.json.mimetype = "application/json; charset=utf-8"
     app.extensions["flask_move_server"] = {
         "config": config, "robot": robot, "store": store, "events": events, "maps": maps, "modes": modes,
         "doctor": doctor}

@@ -318,8 +318,12 @@ def _json(schema, text="ok"):
 
 
 def _name(text=None):
-    """A waypoint name: the characters and length (waypoints.check_name also refuses '..' and '.')."""
-    schema = {"type": "string", "pattern": r"^[A-Za-z0-9_. -]{1,64}$"}
+    """A name (flask_move_server.names): its ASCII characters exactly, any other as a letter, digit or '’' may be.
+
+    A pattern cannot say "a letter of any language" everywhere (``\\p{L}`` is not in every regex
+    dialect that reads it), so the description (names.RULE) says the rest, '..' and '.' alone too.
+    """
+    schema = {"type": "string", "pattern": r"^(?:[A-Za-z0-9_. '-]|[^\x00-\x7f]){1,64}$"}
     if text:
         schema["description"] = text
     return schema

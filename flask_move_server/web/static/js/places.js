@@ -4,6 +4,8 @@ import {api} from "./api.js";
 
 const $ = (id) => document.getElementById(id);
 const quietly = (promise) => promise.catch(() => {});
+// A name as the robot keeps it: NFC, so "Küche" typed on a Mac (u + ¨) is the one typed on a phone.
+const typedName = (text) => (text || "").trim().normalize("NFC");
 let ctx = null;  // {call, sendGoal, isLive, map, buzz} from main.js
 
 let waypointLoads = 0;  // answers can cross (a change, its event, our own reload): the newest request wins
@@ -49,7 +51,7 @@ function mayReplace(name) {
 }
 
 async function renamePlace(w) {
-  const name = (window.prompt("New name for " + w.name + ":", w.name) || "").trim();
+  const name = typedName(window.prompt("New name for " + w.name + ":", w.name));
   if (!name || name === w.name || !mayReplace(name)) return;
   await quietly(ctx.call("PUT", "/waypoints/" + encodeURIComponent(name), {x: w.x, y: w.y, yaw: w.yaw})
     .then(() => ctx.call("DELETE", "/waypoints/" + encodeURIComponent(w.name))));
@@ -64,7 +66,7 @@ async function deletePlace(name) {
 
 /** A press-and-drag in Mark mode: ask for a name, then keep the place with that heading. */
 export async function markPlace(x, y, yaw) {
-  const name = (window.prompt("Name this place:") || "").trim();
+  const name = typedName(window.prompt("Name this place:"));
   if (!name || !mayReplace(name)) return;
   await quietly(ctx.call("PUT", "/waypoints/" + encodeURIComponent(name), {x, y, yaw}));
   quietly(loadWaypoints());
@@ -76,7 +78,7 @@ export function initPlaces(context) {
   ctx.map.onWaypoint = (name) => { if (ctx.isLive()) goTo(name); };
   $("mark-form").onsubmit = (e) => {
     e.preventDefault();
-    const name = $("newname").value.trim();
+    const name = typedName($("newname").value);
     if (!name || !ctx.isLive() || !mayReplace(name)) return;
     quietly(ctx.call("PUT", "/waypoints/" + encodeURIComponent(name), {from: "current"})
       .then(() => { $("newname").value = ""; return loadWaypoints(); }));
