@@ -5,11 +5,11 @@ import {Live} from "./live.js";
 import {MapView} from "./mapview.js";
 import {initPanels, showMode, loadMaps} from "./panels.js";
 import {initHealth} from "./health.js";
-import {report} from "./notice.js";
+import {initNotices, notify, report} from "./notice.js";
 import {initPlaces, loadWaypoints, markPlace} from "./places.js";
 
 const $ = (id) => document.getElementById(id);
-const map = new MapView($("map"));
+const map = new MapView($("map"), {overlays: [$("gesture")]});
 const live = new Live();
 let mapVersion = null, mapEtag = null;
 
@@ -91,7 +91,7 @@ map.onPress = (mode, x, y, yaw) => {
   const pose = {x: round(x), y: round(y), yaw: round(yaw)};
   buzz();
   if (mode === "go") quietly(call("POST", "/goto", pose));
-  else if (mode === "pose") quietly(call("POST", "/pose", pose).then(() => setGesture("go")));
+  else if (mode === "pose") quietly(call("POST", "/pose", pose).then(() => { notify("Pose set"); setGesture("go"); }));
   else if (mode === "mark") markPlace(pose.x, pose.y, pose.yaw).then(() => setGesture("go"));
 };
 const round = (v) => Math.round(v * 1000) / 1000;
@@ -211,6 +211,7 @@ $("token").onclick = () => askTokenAgain().then(() => resync());
 initPanels({call, report, setGesture, isLive});
 initPlaces({call, isLive, map, buzz});
 initHealth();
+initNotices();
 setGesture("go");
 showConnection("connecting");
 live.start();

@@ -10,3 +10,20 @@ export function report(error) {
   clearTimeout(errorTimer);
   errorTimer = setTimeout(() => { $("error").textContent = ""; }, 8000);
 }
+
+let doneTimer = null;
+
+/** A short success note ("Saved kitchen") for 3 s; it also clears an error line an earlier
+ *  command left, which no longer describes the robot. */
+export function notify(text) {
+  clearTimeout(errorTimer);
+  $("error").textContent = "";
+  $("done").textContent = text;
+  clearTimeout(doneTimer);
+  doneTimer = setTimeout(() => { $("done").textContent = ""; }, 3000);
+}
+
+/** A tap on the error line closes it: it lies over the map, and the map is where the finger goes next. */
+export function initNotices() {
+  $("error").addEventListener("click", () => { clearTimeout(errorTimer); $("error").textContent = ""; });
+}
