@@ -296,7 +296,7 @@ def test_a_desktop_says_which_keys_drive_and_a_phone_does_not(sim, browser, page
     assert not page.is_visible("#keys-hint")
     desk = open_page(sim, browser, DESKTOP)
     assert desk.is_visible("#keys-hint")
-    assert "W A S D" in desk.inner_text("#keys-hint") and "arrows" in desk.inner_text("#keys-hint")
+    assert "W A S D" in desk.inner_text("#keys-hint") and "arrow keys" in desk.inner_text("#keys-hint")
     hint, pad = box_of(desk, "#keys-hint"), box_of(desk, "#tab-drive")
     assert pad["y"] <= hint["y"] and hint["y"] + hint["height"] <= pad["y"] + pad["height"], "in the Drive tab"
     desk.close()
