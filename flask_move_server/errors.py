@@ -83,6 +83,12 @@ class UnknownWaypoint(MoveServerError, KeyError):
         return self.args[0]
 
 
+class WaypointExists(MoveServerError, FileExistsError):
+    """A rename would take the name of another waypoint, and replacing it was not asked for."""
+
+    code = "waypoint_exists"
+
+
 class WaypointFileError(MoveServerError, OSError):
     """The waypoints file cannot be read, parsed or written."""
 

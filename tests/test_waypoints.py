@@ -12,7 +12,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from flask_move_server import waypoints as wpmod
-from flask_move_server.errors import BadWaypoint, UnknownWaypoint, WaypointFileError
+from flask_move_server.errors import BadWaypoint, UnknownWaypoint, WaypointExists, WaypointFileError
 from flask_move_server.waypoints import Waypoint, make_waypoint
 from flask_move_server.waypoints import store as waypoint_store
 from flask_move_server.waypoints.store import WaypointStore
@@ -238,5 +238,5 @@ def test_rename_keeps_position_and_refuses_clobbering(seed_file):
     store = WaypointStore(seed_file)
     store.rename("office", "study")
     assert [w.name for w in store.all()] == ["kitchen", "study", "dock"]
-    with pytest.raises(BadWaypoint):
+    with pytest.raises(WaypointExists):
         store.rename("study", "kitchen")

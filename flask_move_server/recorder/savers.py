@@ -7,9 +7,9 @@ one writer when it answers; otherwise the file is written through the same
 + atomic save), so neither loses the other's edits.
 """
 
-from flask_move_server.errors import BadWaypoint, ClientError, WaypointFileError
+from flask_move_server.errors import ClientError, WaypointFileError
 from flask_move_server.robotctl.api import ExitStatus, RobotClient, waypoint_path
-from flask_move_server.waypoints import check_name, make_waypoint
+from flask_move_server.waypoints import make_waypoint
 from flask_move_server.waypoints.store import WaypointStore
 
 
@@ -56,16 +56,9 @@ class ServerSaver:
         self.client.delete(waypoint_path(name))
 
     def rename(self, old, new):
-        """The API has no rename: add the new name, then remove the old one."""
-        old, new = check_name(old), check_name(new)
-        if old == new:
-            return
-        current = self.client.get(waypoint_path(old))
-        names = {wp.name for wp in self.all()}
-        if new in names:
-            raise BadWaypoint("A waypoint named {!r} exists already.".format(new))
-        self.put(make_waypoint(new, current["x"], current["y"], current["yaw"]))
-        self.delete(old)
+        """One ``PATCH``: the server renames in one save (never both names, or neither, on disk)."""
+        if old != new:
+            self.client.request("PATCH", waypoint_path(old), {"name": new})
 
     def close(self):
         self.client.close()

@@ -21,7 +21,7 @@ import os
 import shlex
 import threading
 
-from flask_move_server.errors import BadWaypoint, UnknownWaypoint, WaypointFileError
+from flask_move_server.errors import UnknownWaypoint, WaypointExists, WaypointFileError, shown
 from flask_move_server.waypoints import Waypoint, check_name, suggest
 from flask_move_server.waypoints import locked_file as waypoints_file
 from flask_move_server.waypoints.yaml_format import dump, entries_of, parse, waypoints_of
@@ -132,18 +132,24 @@ class WaypointStore:
                 raise UnknownWaypoint(name, suggest(name, waypoints))
             del waypoints[name]
 
-    def rename(self, old, new):
-        """Give waypoint ``old`` the name ``new``, keeping its place in the file."""
+    def rename(self, old, new, overwrite=False):
+        """Give waypoint ``old`` the name ``new`` in one save, keeping its place in the file.
+
+        A waypoint already called ``new`` is WaypointExists, unless ``overwrite``: then it goes,
+        in the same save (never a moment with both or neither). Returns the renamed Waypoint.
+        """
         old, new = check_name(old), check_name(new)
         with self._edit() as waypoints:
             if old not in waypoints:
                 raise UnknownWaypoint(old, suggest(old, waypoints))
-            if new in waypoints and new != old:
-                raise BadWaypoint("A waypoint named {!r} exists already.".format(new))
-            items = [(new if k == old else k, v) for k, v in waypoints.items()]
+            if new in waypoints and new != old and not overwrite:
+                raise WaypointExists("A waypoint named {} exists already; pick another name, or ask to replace "
+                                     "it.".format(shown(new)))
+            items = [(new if k == old else k, v) for k, v in waypoints.items() if k != new or new == old]
             waypoints.clear()
             for k, v in items:
                 waypoints[k] = Waypoint(k, v.x, v.y, v.yaw)
+            return waypoints[new]
 
     @contextlib.contextmanager
     def _edit(self):

@@ -25,6 +25,7 @@ STATUS = (
     (errors.BodyTooLarge, 413),
     (errors.BadRequest, 400),
     (errors.NavigationFailed, 409),
+    (errors.WaypointExists, 409),
     (errors.NoPose, 409),
     (errors.WaypointsLocked, 503),
     (errors.WaypointFileError, 409),

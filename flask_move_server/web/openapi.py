@@ -122,6 +122,9 @@ def _waypoint_item():
                           errors=(409, 503)),
         "delete": _operation("Delete a waypoint (saved before the answer)", None,
                              {204: {"description": "deleted"}}, errors=(400, 404, 409, 503)),
+        "patch": _operation("Rename a waypoint in one save; onto another's name only with overwrite",
+                            _object({"name": _name("the new name"), "overwrite": {"type": "boolean"}}, ["name"]),
+                            {200: _ok({"waypoint": _ref("Waypoint")})}, errors=(404, 409, 503)),
     }
     for operation in item.values():
         operation["parameters"] = [name]

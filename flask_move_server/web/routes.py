@@ -108,6 +108,18 @@ def delete_waypoint(name):
     return "", 204
 
 
+@api.route("/waypoints/<waypoint:name>", methods=["PATCH"])
+def rename_waypoint(name):
+    """Rename in one save (``PATCH /maps/<name>``'s twin): no moment with both names or neither."""
+    data = json_object(("name", "overwrite"))
+    overwrite = data.get("overwrite", False)
+    if not isinstance(overwrite, bool):
+        raise BadRequest("Field 'overwrite' must be true or false.")
+    check_name(name)
+    waypoint = _store().rename(name, text(data, "name"), overwrite=overwrite)
+    return jsonify({"status": "ok", "waypoint": waypoint.as_dict()})
+
+
 class WaypointNameConverter(PathConverter):
     """``<waypoint:name>``: everything after ``/waypoints/``, line breaks and slashes included.
 

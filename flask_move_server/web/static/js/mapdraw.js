@@ -52,21 +52,92 @@ function drawPlan(v, ctx) {
   ctx.stroke();
 }
 
+// ---- waypoints: a dot with a heading tick, and a label placed where it hides nothing ---------------
+
+const MARKER_R = 7, TICK_PX = 17;     // the dot's radius; the heading tick reaches this far from its centre
+const LABEL_FONT = "bold 14px system-ui, sans-serif", LABEL_H = 16;
+// [most px wide, px from the dot]: next to the dot first, then clear of a robot standing on it, then shorter
+const LABEL_TRIES = [[130, 11], [130, 24], [64, 11], [64, 24]];
+
 function drawWaypoints(v, ctx) {
-  ctx.font = "bold 14px system-ui, sans-serif";
-  ctx.textAlign = "center";
-  for (const w of v.waypoints) {
-    const [sx, sy] = v.toScreen(w.x, w.y);
-    ctx.fillStyle = "#00695c";
-    ctx.strokeStyle = "#fff";
-    ctx.lineWidth = 2;
-    ctx.beginPath(); ctx.arc(sx, sy, 7, 0, 2 * Math.PI); ctx.fill(); ctx.stroke();
-    ctx.lineWidth = 4;
-    ctx.strokeText(w.name, sx, sy - 12);
-    ctx.fillStyle = "#002b26";
-    ctx.fillText(w.name, sx, sy - 12);
+  const spots = v.waypoints.map((w) => ({w, at: v.toScreen(w.x, w.y)}));
+  for (const s of spots) drawMarker(ctx, s.at, s.w.yaw);
+  const taken = spots.flatMap((s) => markerBoxes(s.at, s.w.yaw));
+  if (v.drawn && v.robot) taken.push(around(v.toScreen(v.drawn.x, v.drawn.y), 21));
+  ctx.font = LABEL_FONT;
+  ctx.textAlign = "left";
+  ctx.textBaseline = "middle";
+  v.labels = [];
+  for (const s of spots) {
+    const label = placeLabel(ctx, s, taken, v);
+    if (!label) continue;  // no room anywhere: the dot alone (the list has the name)
+    taken.push(label.box);
+    v.labels.push(label);
+    drawLabel(ctx, label);
   }
 }
+
+function drawMarker(ctx, [sx, sy], yaw) {
+  const [dx, dy] = [Math.cos(yaw), -Math.sin(yaw)];
+  ctx.lineCap = "round";
+  for (const [colour, width] of [["#fff", 6], ["#00695c", 3]]) {
+    ctx.strokeStyle = colour;
+    ctx.lineWidth = width;
+    ctx.beginPath(); ctx.moveTo(sx + dx * MARKER_R, sy + dy * MARKER_R); ctx.lineTo(sx + dx * TICK_PX, sy + dy * TICK_PX);
+    ctx.stroke();
+  }
+  ctx.fillStyle = "#00695c";
+  ctx.strokeStyle = "#fff";
+  ctx.lineWidth = 2;
+  ctx.beginPath(); ctx.arc(sx, sy, MARKER_R, 0, 2 * Math.PI); ctx.fill(); ctx.stroke();
+}
+
+/** What a marker covers: its dot and the end of its heading tick, as [left, top, right, bottom] boxes. */
+function markerBoxes([sx, sy], yaw) {
+  return [around([sx, sy], MARKER_R + 2), around([sx + Math.cos(yaw) * (TICK_PX - 3), sy - Math.sin(yaw) * (TICK_PX - 3)], 4)];
+}
+
+/** The first spot (above, below, right, left of the dot, near then farther) where the name, shortened as needed,
+ *  overlaps nothing drawn so far and stays on the canvas; null when there is none. */
+function placeLabel(ctx, {w, at: [sx, sy]}, taken, v) {
+  for (const [maxWidth, gap] of LABEL_TRIES) {
+    const text = shortened(ctx, w.name, maxWidth), width = ctx.measureText(text).width;
+    const spots = [[sx - width / 2, sy - gap - LABEL_H], [sx - width / 2, sy + gap],
+                   [sx + gap, sy - LABEL_H / 2], [sx - gap - width, sy - LABEL_H / 2]];
+    for (const [x, y] of spots) {
+      const box = [x - 2, y, x + width + 2, y + LABEL_H];
+      const onCanvas = box[0] >= 0 && box[1] >= 0 && box[2] <= v.width && box[3] <= v.height;
+      if (onCanvas && !taken.some((t) => overlaps(t, box))) return {name: w.name, text, x, y, box};
+    }
+  }
+  return null;
+}
+
+function drawLabel(ctx, {text, x, y}) {
+  ctx.lineWidth = 4;
+  ctx.strokeStyle = "#fff";
+  ctx.strokeText(text, x, y + LABEL_H / 2);
+  ctx.fillStyle = "#002b26";
+  ctx.fillText(text, x, y + LABEL_H / 2);
+}
+
+const shortenedCache = new Map();  // measuring every frame would cost a lot with many places
+
+/** `text` as it fits in `maxWidth` px: whole, or cut (by characters, not UTF-16 halves) and ended with "…". */
+function shortened(ctx, text, maxWidth) {
+  const key = maxWidth + "|" + text;
+  if (!shortenedCache.has(key)) {
+    const chars = Array.from(text);
+    let n = chars.length;
+    while (n > 1 && ctx.measureText(n < chars.length ? chars.slice(0, n).join("") + "…" : text).width > maxWidth) n--;
+    if (shortenedCache.size > 2000) shortenedCache.clear();
+    shortenedCache.set(key, n < chars.length ? chars.slice(0, n).join("").trimEnd() + "…" : text);
+  }
+  return shortenedCache.get(key);
+}
+
+function around([x, y], r) { return [x - r, y - r, x + r, y + r]; }
+function overlaps(a, b) { return a[0] < b[2] && b[0] < a[2] && a[1] < b[3] && b[1] < a[3]; }
 
 function drawArrow(v, ctx, x, y, yaw, colour, size) {
   const [sx, sy] = v.toScreen(x, y);

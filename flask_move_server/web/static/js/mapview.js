@@ -13,8 +13,10 @@ const SILENT_MS = 3500;   // the server tells the pose at least once a second, e
 const MIN_SCALE = 2, MAX_SCALE = 800;
 
 export class MapView {
-  constructor(canvas) {
+  /** `overlays`: controls laid over the canvas (the gesture bar) that fit() keeps the map clear of. */
+  constructor(canvas, {overlays = []} = {}) {
     this.canvas = canvas;
+    this.overlays = overlays;
     this.ctx = canvas.getContext("2d");
     this.meta = null;            // {resolution, originX, originY, width, height, version}
     this.image = null;           // an ImageBitmap of /map/image
@@ -27,6 +29,7 @@ export class MapView {
     this.plan = [];
     this.goal = null;
     this.waypoints = [];
+    this.labels = [];            // the waypoint labels as drawn: {name, text, box}
     this.mode = "go";            // what a one-finger press does: go | pose | mark | look
     this.pointers = new Map();
     this.gesture = null;
@@ -74,6 +77,30 @@ export class MapView {
     if (!this.meta && !this.userMoved) this.fit();
   }
 
+  /** What the map shows at (x, y) m: "free", "wall" or "unknown" (off the map too); null without a map.
+   *  The PNG is map_saver's: free 254, unknown 205, occupied 0. */
+  cellAt(x, y) {
+    const m = this.meta;
+    if (!m || !this.image) return null;
+    const col = Math.floor((x - m.originX) / m.resolution), row = m.height - 1 - Math.floor((y - m.originY) / m.resolution);
+    if (col < 0 || row < 0 || col >= m.width || row >= m.height) return "unknown";
+    const value = this.pixels()[(row * m.width + col) * 4];
+    return value >= 240 ? "free" : value <= 100 ? "wall" : "unknown";
+  }
+
+  /** The map image's RGBA bytes, read once per image through an offscreen canvas. */
+  pixels() {
+    if (this.pixelsOf !== this.image) {
+      const {width, height} = this.image;
+      const canvas = Object.assign(document.createElement("canvas"), {width, height});  // not OffscreenCanvas: iOS < 16.4
+      const scratch = canvas.getContext("2d", {willReadFrequently: true});
+      scratch.drawImage(this.image, 0, 0);
+      this.pixelData = scratch.getImageData(0, 0, width, height).data;
+      this.pixelsOf = this.image;
+    }
+    return this.pixelData;
+  }
+
   /** Stale: the server's pose was old when read, no pose came for a while (the server repeats
    *  it every second at rest), or the page has lost the robot. */
   robotStale() {
@@ -107,13 +134,28 @@ export class MapView {
     return [Math.min(...xs) - 1, Math.min(...ys) - 1, Math.max(...xs) + 1, Math.max(...ys) + 1];
   }
 
+  /** The canvas less the controls over it, [left, top, width, height]: a bar along the bottom
+   *  takes its height off the bottom, a column at the left its width off the left. */
+  usableArea() {
+    let [left, bottom] = [0, this.height];
+    const c = this.canvas.getBoundingClientRect();
+    for (const el of this.overlays) {
+      const o = el.getBoundingClientRect();
+      if (!o.width || !o.height) continue;
+      if (o.width >= o.height) bottom = Math.min(bottom, o.top - c.top);
+      else left = Math.max(left, o.right - c.left);
+    }
+    return [left, 0, this.width - left, Math.max(bottom, this.height / 2)];
+  }
+
   fit() {
     if (!this.width || !this.height) return;
     const [x0, y0, x1, y1] = this.bounds();
-    const scale = Math.min(this.width / Math.max(x1 - x0, 0.5), this.height / Math.max(y1 - y0, 0.5)) * 0.95;
+    const [left, top, width, height] = this.usableArea();
+    const scale = Math.min(width / Math.max(x1 - x0, 0.5), height / Math.max(y1 - y0, 0.5)) * 0.95;
     this.view.scale = clamp(scale, MIN_SCALE, MAX_SCALE);
-    this.view.ox = this.width / 2 - (x0 + x1) / 2 * this.view.scale;
-    this.view.oy = this.height / 2 + (y0 + y1) / 2 * this.view.scale;
+    this.view.ox = left + width / 2 - (x0 + x1) / 2 * this.view.scale;
+    this.view.oy = top + height / 2 + (y0 + y1) / 2 * this.view.scale;
     this.fitted = Boolean(this.meta);
     this.userMoved = false;
     this.follow = false;
@@ -262,6 +304,7 @@ export class MapView {
     set(ds, "view", [this.view.scale, this.view.ox, this.view.oy].map((v) => v.toFixed(3)).join(","));
     set(ds, "follow", this.follow ? "1" : "0");
     set(ds, "planPoints", String(this.plan.length));
+    set(ds, "labels", JSON.stringify(this.labels.map((l) => ({name: l.name, text: l.text, box: l.box.map(Math.round)}))));
   }
 }
 

@@ -5,26 +5,30 @@ import {words} from "./words.js";
 
 const $ = (id) => document.getElementById(id);
 let errorTimer = null;
+let doneTimer = null;
 
 /** Shows an error for 8 s, in words for people; `what` says what was tried ("goal", "pose", …). */
 export function report(error, what) {
-  show(words(error, what), "error", 8000);
-}
-
-/** A short note that something was done ("Saved kitchen"), 3 s. */
-export function notify(text) {
-  show(text, "done", 3000);
-}
-
-/** A command went through: an error shown for an earlier one no longer applies. */
-export function clearError() {
-  if ($("error").dataset.level === "error") show("", "", 0);
-}
-
-function show(text, level, ms) {
-  const line = $("error");
-  line.textContent = text;
-  line.dataset.level = level;
+  $("error").textContent = words(error, what);
   clearTimeout(errorTimer);
-  if (ms) errorTimer = setTimeout(() => { line.textContent = ""; line.dataset.level = ""; }, ms);
+  errorTimer = setTimeout(clearError, 8000);
+}
+
+/** A command went through: an error shown for an earlier one no longer describes the robot. */
+export function clearError() {
+  clearTimeout(errorTimer);
+  $("error").textContent = "";
+}
+
+/** A short success note ("Saved kitchen") for 3 s; it also clears an earlier command's error. */
+export function notify(text) {
+  clearError();
+  $("done").textContent = text;
+  clearTimeout(doneTimer);
+  doneTimer = setTimeout(() => { $("done").textContent = ""; }, 3000);
+}
+
+/** A tap on the error line closes it: it lies over the map, and the map is where the finger goes next. */
+export function initNotices() {
+  $("error").addEventListener("click", clearError);
 }

@@ -1,12 +1,15 @@
 // The Places panel and the places on the map: the list (Go, Rename, Delete), Mark here, and a
 // place marked by a press on the map. The list and the map's markers are drawn from one read.
 import {api} from "./api.js";
+import {notify} from "./notice.js";
 
 const $ = (id) => document.getElementById(id);
 const quietly = (promise) => promise.catch(() => {});
 // A name as the robot keeps it: NFC, so "Küche" typed on a Mac (u + ¨) is the one typed on a phone.
 const typedName = (text) => (text || "").trim().normalize("NFC");
 let ctx = null;  // {call, sendGoal, isLive, map, buzz} from main.js
+const FILTER_FROM = 6;  // this many places or more: a box to find one by name
+const byName = new Intl.Collator(undefined, {numeric: true, sensitivity: "base"});
 
 let waypointLoads = 0;  // answers can cross (a change, its event, our own reload): the newest request wins
 let shownWaypoints = null;  // the list as drawn, as JSON
@@ -20,8 +23,25 @@ export async function loadWaypoints() {
   shownWaypoints = shown;
   ctx.map.setWaypoints(data.waypoints);
   const list = $("places");
-  list.replaceChildren(...data.waypoints.map(placeRow));
+  const sorted = data.waypoints.slice().sort((a, b) => byName.compare(a.name, b.name));
+  list.replaceChildren(...sorted.map(placeRow));
   list.dataset.count = String(data.waypoints.length);
+  $("place-filter").hidden = data.waypoints.length < FILTER_FROM;
+  filterPlaces();
+}
+
+/** Folded for finding: case and accents ignored, so "kuche" finds "Küche". */
+const folded = (text) => text.normalize("NFD").replace(/\p{M}/gu, "").toLocaleLowerCase();
+
+/** Shows the rows whose name holds what the filter box holds (all of them while it is hidden or empty). */
+function filterPlaces() {
+  const box = $("place-filter"), wanted = box.hidden ? "" : folded(box.value.trim());
+  let matches = 0;
+  for (const li of $("places").children) {
+    li.hidden = Boolean(wanted) && !folded(li.dataset.name).includes(wanted);
+    matches += li.hidden ? 0 : 1;
+  }
+  $("places").dataset.matches = String(matches);
 }
 
 function placeRow(w) {
@@ -50,25 +70,44 @@ function mayReplace(name) {
   return !ctx.map.waypoints.some((w) => w.name === name) || window.confirm("Replace the waypoint " + name + "?");
 }
 
+const placePath = (name) => "/waypoints/" + encodeURIComponent(name);
+
+/** One PATCH: the server renames in one save, so a failure never leaves the place twice. */
 async function renamePlace(w) {
   const name = typedName(window.prompt("New name for " + w.name + ":", w.name));
-  if (!name || name === w.name || !mayReplace(name)) return;
-  await quietly(ctx.call("PUT", "/waypoints/" + encodeURIComponent(name), {x: w.x, y: w.y, yaw: w.yaw})
-    .then(() => ctx.call("DELETE", "/waypoints/" + encodeURIComponent(w.name))));
+  if (!name || name === w.name) return;
+  const overwrite = ctx.map.waypoints.some((p) => p.name === name);
+  if (overwrite && !window.confirm("Replace the waypoint " + name + "?")) return;
+  await quietly(ctx.call("PATCH", placePath(w.name), {name, overwrite})
+    .then(() => notify("Renamed " + w.name + " to " + name)));
   quietly(loadWaypoints());
 }
 
 async function deletePlace(name) {
   if (!window.confirm("Delete the waypoint " + name + "?")) return;
-  await quietly(ctx.call("DELETE", "/waypoints/" + encodeURIComponent(name)));
+  await quietly(ctx.call("DELETE", placePath(name)).then(() => notify("Deleted " + name)));
   quietly(loadWaypoints());
+}
+
+/** Saves a place under `name` (`where`: {x, y, yaw} or {from: "current"}) and says so. */
+function savePlace(name, where) {
+  return ctx.call("PUT", placePath(name), where).then(() => notify("Saved " + name));
+}
+
+const SPOT_WORDS = {wall: "inside a wall", unknown: "not mapped yet"};
+
+/** A spot inside a wall or in unmapped space is asked about before it is marked. */
+function spotIsFine(x, y) {
+  const cell = ctx.map.cellAt(x, y);
+  return !SPOT_WORDS[cell] || window.confirm("This spot is " + SPOT_WORDS[cell] + ". Mark it anyway?");
 }
 
 /** A press-and-drag in Mark mode: ask for a name, then keep the place with that heading. */
 export async function markPlace(x, y, yaw) {
+  if (!spotIsFine(x, y)) return;
   const name = typedName(window.prompt("Name this place:"));
   if (!name || !mayReplace(name)) return;
-  await quietly(ctx.call("PUT", "/waypoints/" + encodeURIComponent(name), {x, y, yaw}));
+  await quietly(savePlace(name, {x, y, yaw}));
   quietly(loadWaypoints());
 }
 
@@ -80,7 +119,7 @@ export function initPlaces(context) {
     e.preventDefault();
     const name = typedName($("newname").value);
     if (!name || !ctx.isLive() || !mayReplace(name)) return;
-    quietly(ctx.call("PUT", "/waypoints/" + encodeURIComponent(name), {from: "current"})
-      .then(() => { $("newname").value = ""; return loadWaypoints(); }));
+    quietly(savePlace(name, {from: "current"}).then(() => { $("newname").value = ""; return loadWaypoints(); }));
   };
+  $("place-filter").oninput = filterPlaces;
 }
