@@ -358,6 +358,7 @@ def test_the_e_stop_latches_shows_and_is_released(sim, page):
     page.wait_for_function("document.getElementById('pad').getAttribute('aria-disabled') === 'true'", timeout=5000)
     page.locator("#tabs button[data-tab=places]").tap()
     assert page.locator("#places li[data-name=kitchen] button.go").is_disabled()
+    page.locator("#tabs button[data-tab=drive]").tap()
     screen = Screen(page, sim)
     start = screen.screen(1.0, 1.0)
     finger = Finger(page, on_page(page, start))
