@@ -69,14 +69,21 @@ class ScanRelay:
     def _run(self):
         while not self._stop.is_set():
             self._wake.clear()  # before looking: a reader coming meanwhile wakes the wait below
-            reading = self._events.subscribers > 0
-            if reading and self._ready.is_set() and self._subscriber is None:
-                self._subscriber = rospy.Subscriber(self._topic, LaserScan, self._on_scan, queue_size=1,
-                                                    buff_size=2 ** 16)
-            elif not reading and self._subscriber is not None:
-                self._unsubscribe()
-                self._tell([])  # the bus keeps the latest: a page opening later must not get this old scan
+            try:
+                self._follow_readers()
+            except Exception:  # rospy refusing (shutting down): the pages go without a scan, the server goes on
+                log.exception("following the event readers for the laser scan failed")
             self._wake.wait(self._check if self._subscriber is not None else None)
+
+    def _follow_readers(self):
+        """Subscribe to the laser while someone reads the events, unsubscribe once nobody does."""
+        reading = self._events.subscribers > 0
+        if reading and self._ready.is_set() and self._subscriber is None:
+            self._subscriber = rospy.Subscriber(self._topic, LaserScan, self._on_scan, queue_size=1,
+                                                buff_size=2 ** 16)
+        elif not reading and self._subscriber is not None:
+            self._unsubscribe()
+            self._tell([])  # the bus keeps the latest: a page opening later must not get this old scan
 
     def _unsubscribe(self):
         subscriber, self._subscriber = self._subscriber, None
