@@ -101,11 +101,17 @@ class Server:
         return Doctor(observer, self.modes, cfg.maps_folder(), cfg.diagnostics.window, simulated=cfg.sim.enabled)
 
     def _report(self, stack, robot):
-        """The robot's state (pose, status, e-stop, move_base's plan) told on the event bus for GET /events."""
+        """The robot's state (pose, status, e-stop, move_base's plan, the laser scan) told on the event bus
+        for GET /events."""
         from flask_move_server.reporter import Reporter
         from flask_move_server.ros.plan import PlanRelay
+        from flask_move_server.ros.scan import ScanRelay
 
-        stack.callback(PlanRelay(self.config.navigation.plan_topic, self.events, self._node).close)
+        cfg = self.config
+        stack.callback(PlanRelay(cfg.navigation.plan_topic, self.events, self._node).close)
+        scan = ScanRelay(cfg.diagnostics.scan_topic, cfg.ros.frames.map, self.events, self._node,
+                         lambda: robot.pose.buffer)
+        stack.callback(scan.start().close)
         stack.callback(Reporter(robot, self.events).start().close)
 
     def _advertise(self, stack):

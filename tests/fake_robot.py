@@ -85,7 +85,8 @@ class FakeRobot:
         return {
             "pose": None,
             "navigation": self._navigation.status(),
-            "teleop": {"active": False, "linear": 0.0, "angular": 0.0, "remaining": None, "deadman": 0.5},
+            "teleop": {"active": False, "linear": 0.0, "angular": 0.0, "remaining": None, "deadman": 0.5,
+                       "max_linear": 0.4, "max_angular": 1.5},
             "motors": {"backend": "none", "left": 0.0, "right": 0.0},
             "estop": self.estop.status(),
             "ros": {"state": "connected", "master_uri": "http://fake:11311", "node": "/fake"},

@@ -96,6 +96,8 @@ class Teleop:
                 "angular": self._angular,
                 "remaining": None if remaining is None else round(remaining, 3),
                 "deadman": self._config.deadman,
+                "max_linear": self._config.max_linear,  # the clamp: a page scales its joystick to these
+                "max_angular": self._config.max_angular,
             }
 
     def close(self):

@@ -239,7 +239,7 @@ _PNG = {200: {"description": "a greyscale PNG, ETag = the map's version",
 
 
 def _events():
-    stream = {"description": "Server-Sent Events: 'event: <kind>' (pose, status, estop, plan, mode, map, "
+    stream = {"description": "Server-Sent Events: 'event: <kind>' (pose, status, estop, plan, scan, mode, map, "
                              "waypoints, clock) and 'data: <one JSON object>', the latest of each kind first; "
                              "a clock event every 2 s. docs/api.md lists each kind's fields.",
               "content": {"text/event-stream": {"schema": {"type": "string"}}}}

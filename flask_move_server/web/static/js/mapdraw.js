@@ -9,7 +9,9 @@ export function drawMap(v) {
   ctx.fillRect(0, 0, v.width, v.height);
   if (v.image && v.meta) drawImage(v, ctx);
   else drawGrid(v, ctx);
+  drawTrail(v, ctx);
   drawPlan(v, ctx);
+  drawScan(v, ctx);
   if (v.goal) drawArrow(v, ctx, v.goal.x, v.goal.y, v.goal.yaw, "#c2185b", 16);
   drawWaypoints(v, ctx);
   if (v.drawn && v.robot) {
@@ -58,6 +60,36 @@ const MARKER_R = 7, TICK_PX = 17;     // the dot's radius; the heading tick reac
 const LABEL_FONT = "bold 14px system-ui, sans-serif", LABEL_H = 16;
 // [most px wide, px from the dot]: next to the dot first, then clear of a robot standing on it, then shorter
 const LABEL_TRIES = [[130, 11], [130, 24], [64, 11], [64, 24]];
+/** Where the robot went: a thin line, broken where its pose jumped. */
+function drawTrail(v, ctx) {
+  if (v.trail.length < 2) return;
+  ctx.strokeStyle = "rgba(230, 81, 0, 0.75)";
+  ctx.lineWidth = 2;
+  ctx.lineJoin = "round";
+  ctx.beginPath();
+  let open = false;
+  for (const p of v.trail) {
+    if (!p) { open = false; continue; }
+    const [sx, sy] = v.toScreen(p[0], p[1]);
+    if (open) ctx.lineTo(sx, sy); else ctx.moveTo(sx, sy);
+    open = true;
+  }
+  ctx.stroke();
+}
+
+/** What the laser sees now: small bright dots that read on white floor, black walls and grey unknown. */
+function drawScan(v, ctx) {
+  const points = v.scanShown();
+  if (!points.length) return;
+  const size = 4, half = size / 2;
+  ctx.fillStyle = "#ff1744";
+  ctx.beginPath();
+  for (const [x, y] of points) {
+    const [sx, sy] = v.toScreen(x, y);
+    ctx.rect(sx - half, sy - half, size, size);
+  }
+  ctx.fill();
+}
 
 function drawWaypoints(v, ctx) {
   const spots = v.waypoints.map((w) => ({w, at: v.toScreen(w.x, w.y)}));

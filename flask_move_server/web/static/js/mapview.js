@@ -11,6 +11,9 @@ const HIT_PX = 24;        // a tap this close to a waypoint marker picks it
 const STALE_AGE_S = 1.5;  // a pose this old when the server read it greys the robot
 const SILENT_MS = 3500;   // the server tells the pose at least once a second, even at rest
 const MIN_SCALE = 2, MAX_SCALE = 800;
+const TRAIL_POINTS = 500; // poses kept for the trail (at 5 cm apart, the last 25 m driven)
+const TRAIL_STEP_M = 0.05; // a pose closer than this to the last kept one adds nothing
+const TRAIL_JUMP_M = 1.0;  // a longer step is a jump (a new pose set), not driven: no line across it
 
 export class MapView {
   /** `overlays`: controls laid over the canvas (the gesture bar) that fit() keeps the map clear of. */
@@ -30,12 +33,17 @@ export class MapView {
     this.goal = null;
     this.waypoints = [];
     this.labels = [];            // the waypoint labels as drawn: {name, text, box}
+    this.scan = [];              // the laser's echoes [[x, y], ...] in the map frame, newest scan
+    this.scanSeen = 0;           // scans received, for the tests
+    this.showScan = true;
+    this.trail = [];             // where the robot went [[x, y] or null (a jump), ...], oldest first
     this.mode = "go";            // what a one-finger press does: go | pose | mark | look
     this.pointers = new Map();
     this.gesture = null;
     this.onPress = () => {};     // (mode, x, y, yaw) from a drag or a tap on the map
     this.onWaypoint = () => {};  // (name) from a tapped marker
     this.onTap = () => {};       // (mode) a tap on no marker
+    this.onWaypoints = () => {}; // (list) the waypoints shown changed
     this.listen();
     new ResizeObserver(() => this.resize()).observe(canvas);
     this.resize();
@@ -66,14 +74,31 @@ export class MapView {
       return;
     }
     this.robot = {x: pose.x, y: pose.y, yaw: pose.yaw, age: pose.age || 0, at: performance.now()};
+    this.extendTrail(pose);
     if (!this.drawn) this.drawn = {x: pose.x, y: pose.y, yaw: pose.yaw};
     if (!this.meta && !this.userMoved && !this.robotSeen) { this.robotSeen = true; this.fit(); }
   }
 
   setPlan(poses) { this.plan = poses || []; }
+  setScan(points) { this.scan = points || []; this.scanSeen += 1; }
+  clearTrail() { this.trail = []; }
+
+  /** Keeps the pose for the trail when it moved; a jump starts a new piece of line. */
+  extendTrail(pose) {
+    const last = this.trail[this.trail.length - 1];
+    const step = last ? Math.hypot(pose.x - last[0], pose.y - last[1]) : Infinity;
+    if (step < TRAIL_STEP_M) return;
+    if (last && step > TRAIL_JUMP_M) this.trail.push(null);
+    this.trail.push([pose.x, pose.y]);
+    if (this.trail.length > TRAIL_POINTS) this.trail.splice(0, this.trail.length - TRAIL_POINTS);
+  }
+
+  /** The scan as drawn now: none while hidden or while the robot is not connected (it would be old). */
+  scanShown() { return this.showScan && !this.offline ? this.scan : []; }
   setGoal(goal) { this.goal = goal; }
   setWaypoints(list) {
     this.waypoints = list;
+    this.onWaypoints(list);
     if (!this.meta && !this.userMoved) this.fit();
   }
 
@@ -305,6 +330,9 @@ export class MapView {
     set(ds, "follow", this.follow ? "1" : "0");
     set(ds, "planPoints", String(this.plan.length));
     set(ds, "labels", JSON.stringify(this.labels.map((l) => ({name: l.name, text: l.text, box: l.box.map(Math.round)}))));
+    set(ds, "scanPoints", String(this.scanShown().length));
+    set(ds, "scanSeen", String(this.scanSeen));
+    set(ds, "trailPoints", String(this.trail.filter(Boolean).length));
   }
 }
 
