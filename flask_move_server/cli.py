@@ -143,6 +143,8 @@ class Server:
             self._simulation = Simulation(cfg, node, drive, autostart=cfg.stack_kind() != "sim")
             stack.callback(self._simulation.close)
         robot = build_robot(cfg, node, drive, estop)
+        if self._simulation is not None:
+            robot.ground_truth = self._simulation.world.pose
         stack.callback(robot.close)
         self._watch_estop_button(stack, estop)
         self._node = node
