@@ -56,15 +56,10 @@ def assumed(sim):
     return sim.get("/mode").json()["localization"]["assumed"]
 
 
-def test_no_banner_while_nothing_is_assumed(sim, browser):
-    page = open_page(browser, sim)
-    page.wait_for_function("document.getElementById('mode').dataset.state === 'running'")
-    assert page.locator("#whereabouts").is_hidden()
-    assert page.errors == []
-
-
 def test_after_a_map_switch_the_page_asks_to_check_the_position(sim, browser):
     page = open_page(browser, sim)
+    page.wait_for_function("document.getElementById('mode').dataset.state === 'running'")
+    assert page.locator("#whereabouts").is_hidden()  # the demo's own map: nothing assumed
     use_the_demo_map(sim)
     page.wait_for_function(BANNER_SHOWN, timeout=15000)
     assert page.inner_text("#whereabouts-text") == "Position assumed: dock — check it"
@@ -119,7 +114,7 @@ def test_set_position_then_a_press_on_the_map_sets_it_and_the_banner_goes(sim, b
     finger.lift()
     page.wait_for_function(BANNER_GONE, timeout=10000)
     wait_for(lambda: not assumed(sim), message="the set position to end the assumption")
-    assert page.get_attribute("#map", "data-gesture") == "go"
+    page.wait_for_function("document.getElementById('map').dataset.gesture === 'go'")  # back to Go after one
     assert page.errors == []
 
 
