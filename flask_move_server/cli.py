@@ -149,6 +149,8 @@ class Server:
             self._simulation = Simulation(cfg, node, drive, autostart=cfg.stack_kind() != "sim")
             stack.callback(self._simulation.close)
         robot = build_robot(cfg, node, drive, estop)
+        if self._simulation is not None:
+            robot.ground_truth = self._simulation.world.pose
         stack.callback(robot.close)
         self._keep_trips(stack, robot)
         self._watch_estop_button(stack, estop)

@@ -28,6 +28,7 @@ class Robot:
         self.estop.when_engaged(lambda source: self.stop())
         self.shutting_down = False
         self.goal_gate = None  # modes/goal_gate.py, when this server runs the navigation stack
+        self.ground_truth = None  # with --sim: the simulated robot's true pose (a callable), shown in /status
 
     def goto(self, goal):
         """Send the robot to ``goal``; returns the goal's sequence number."""
@@ -130,7 +131,14 @@ class Robot:
             "estop": self.estop.status(),
             "ros": {"state": self.node.health, "master_uri": self.node.master_uri, "node": self.node.name,
                     "failed_parts": self.node.failed_parts},
+            **self._simulated(),
         }
+
+    def _simulated(self):
+        """``{"sim": {"true_pose": ...}}`` with --sim: where the robot really is, beside what localization believes."""
+        if self.ground_truth is None:
+            return {}
+        return {"sim": {"true_pose": self.ground_truth().as_dict()}}
 
     def health(self):
         """The short answer of ``GET /health``."""

@@ -80,3 +80,14 @@ def test_pose_by_name_or_coordinates(live, capsys):
     assert "set to kitchen (1.23, 4.56, 0.79)" in capsys.readouterr().out
     assert robotctl(live, "pose", "1", "2") == ExitStatus.USAGE
     assert robotctl(live, "pose", "kitchn") == ExitStatus.NOT_FOUND
+
+
+def test_pose_confirm_settles_the_dock_assumed_after_a_switch(live, capsys):
+    save_map(live.config, "flat", "waypoints:\n  dock: [0.5, -1.0, 1.57]\n")
+    assert robotctl(live, "map", "use", "flat") == ExitStatus.OK
+    assert live.modes.status()["localization"]["assumed"] is True
+    assert robotctl(live, "pose", "--confirm", "kitchen") == ExitStatus.USAGE
+    assert robotctl(live, "pose", "--confirm") == ExitStatus.OK
+    assert live.modes.status()["localization"]["assumed"] is False
+    assert len(live.poses) == 1  # the dock only
+    assert "confirmed" in capsys.readouterr().out

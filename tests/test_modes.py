@@ -407,3 +407,59 @@ def test_a_mode_that_cannot_be_remembered_says_so_until_one_is(cfg, harness):
     assert harness.modes.wait(5)
     assert "not remembered" not in harness.modes.status()["message"]
     assert json.load(open(cfg.mode_state_file())) == {"mode": "mapping", "map": None}
+
+
+NOT_ASSUMED = {"assumed": False, "from": None, "since": None}
+
+
+def test_the_dock_set_after_a_switch_is_an_assumption_until_the_pose_is_set(cfg, harness):
+    save_map(cfg, "flat", "waypoints:\n  dock: [0.5, -1.0, 1.57]\n")
+    assert harness.modes.status()["localization"] == NOT_ASSUMED
+    harness.modes.switch("navigation", "flat")
+    harness.modes.wait(5)
+    assumed = harness.modes.status()["localization"]
+    assert assumed["assumed"] is True and assumed["from"] == "dock" and assumed["since"]
+    assert harness.events[-1]["localization"] == assumed  # the running event says it
+    harness.modes.set_pose(Pose2D(3.0, 1.0, 0.0))
+    assert harness.modes.status()["localization"] == NOT_ASSUMED
+    assert harness.events[-1]["localization"] == NOT_ASSUMED and harness.events[-1]["state"] == "running"
+
+
+def test_confirming_the_assumed_pose_settles_it_without_setting_one(cfg, harness):
+    save_map(cfg, "flat", "waypoints:\n  dock: [0.5, -1.0, 1.57]\n")
+    harness.modes.switch("navigation", "flat")
+    harness.modes.wait(5)
+    events = len(harness.events)
+    assert harness.modes.confirm_pose() == NOT_ASSUMED
+    assert harness.modes.status()["localization"] == NOT_ASSUMED
+    assert harness.poses == [Pose2D(0.5, -1.0, 1.57)]  # only the dock: confirming publishes nothing
+    assert len(harness.events) == events + 1
+    assert harness.modes.confirm_pose() == NOT_ASSUMED  # again: nothing to do, no event
+    assert len(harness.events) == events + 1
+
+
+def test_a_pose_given_with_the_switch_is_not_assumed_and_a_new_switch_forgets_the_dock(cfg, harness):
+    save_map(cfg, "flat", "waypoints:\n  dock: [0.5, -1.0, 1.57]\n")
+    harness.modes.switch("navigation", "flat", Pose2D(1.0, 1.0, 0.0))
+    harness.modes.wait(5)
+    assert harness.modes.status()["localization"] == NOT_ASSUMED
+    harness.modes.switch("navigation", "flat")
+    harness.modes.wait(5)
+    assert harness.modes.status()["localization"]["assumed"] is True
+    harness.modes.switch("mapping")
+    assert harness.modes.status()["localization"] == NOT_ASSUMED  # from the switch's first status on
+    harness.modes.wait(5)
+    harness.stack.gate.clear()
+    harness.modes.switch("navigation", "flat")
+    with pytest.raises(ModeSwitching, match="confirm the robot's pose once"):
+        harness.modes.confirm_pose()  # the dock the new stack will be told is not known yet
+    harness.stack.gate.set()
+    assert harness.modes.wait(5) and harness.modes.status()["localization"]["assumed"] is True
+
+
+def test_after_a_restart_the_dock_is_assumed_again(cfg):
+    save_map(cfg, "flat", "waypoints:\n  dock: [0.5, -1.0, 1.57]\n")
+    state_file = '{"mode": "navigation", "map": "flat"}'
+    status, starts = _restored(cfg, state_file)
+    assert starts == [("navigation", os.path.join(cfg.maps_folder(), "flat.yaml"))]
+    assert status["localization"]["assumed"] is True and status["localization"]["from"] == "dock"

@@ -42,7 +42,7 @@ def client(robot_config, store, modes):
 def test_get_mode_is_the_managers_status(client, modes):
     r = client.get("/mode")
     assert r.status_code == 200 and r.get_json() == modes.status()
-    assert set(r.get_json()) == {"mode", "map", "state", "since", "message"}
+    assert set(r.get_json()) == {"mode", "map", "state", "since", "message", "localization"}
 
 
 def test_post_mode_answers_202_switching_then_runs(client, modes, stack):
@@ -133,6 +133,36 @@ def test_bad_poses_are_refused(client, modes, poses, body, code):
     r = client.post("/pose", json=body)
     assert r.get_json()["error"] == code and 400 <= r.status_code < 500
     assert poses == []
+
+
+def test_the_dock_assumed_after_a_switch_is_said_until_confirmed(client, robot_config, poses):
+    save_map(robot_config, "flat", "waypoints:\n  dock: [0.5, -1.0, 1.57]\n")
+    client.post("/mode", json={"mode": "navigation", "map": "flat", "wait": 5})
+    assumed = client.get("/status").get_json()["mode"]["localization"]
+    assert assumed["assumed"] is True and assumed["from"] == "dock"
+    r = client.post("/pose", json={"confirm": True})
+    assert r.status_code == 200, r.get_json()
+    assert r.get_json()["localization"] == {"assumed": False, "from": None, "since": None}
+    assert client.get("/mode").get_json()["localization"]["assumed"] is False
+    assert len(poses) == 1  # the dock; confirming publishes nothing
+
+
+def test_setting_the_pose_ends_the_assumption(client, robot_config):
+    save_map(robot_config, "flat", "waypoints:\n  dock: [0.5, -1.0, 1.57]\n")
+    client.post("/mode", json={"mode": "navigation", "map": "flat", "wait": 5})
+    r = client.post("/pose", json={"x": 1.0, "y": 2.0, "yaw": 0.0})
+    assert r.status_code == 200 and r.get_json()["localization"]["assumed"] is False
+
+
+@pytest.mark.parametrize("body", [{"confirm": False}, {"confirm": "yes"}, {"confirm": True, "x": 1.0}])
+def test_a_confirm_that_is_not_true_alone_is_refused(client, robot_config, poses, body):
+    save_map(robot_config, "flat", "waypoints:\n  dock: [0.5, -1.0, 1.57]\n")
+    client.post("/mode", json={"mode": "navigation", "map": "flat", "wait": 5})
+    r = client.post("/pose", json=body)
+    assert r.status_code == 400 and r.get_json()["error"] == "bad_request"
+    assert "confirm" in r.get_json()["message"]
+    assert client.get("/mode").get_json()["localization"]["assumed"] is True  # nothing changed
+    assert len(poses) == 1
 
 
 def test_status_shows_the_mode(client, modes):

@@ -443,6 +443,8 @@ def test_set_pose_mode_moves_the_robots_pose(sim, page):
     assert angle_error(sim.pose()["yaw"], math.pi / 2) < 0.15
     assert sim.status()["navigation"]["state"] != "active", "a pose estimate is not a goal"
     page.wait_for_function("document.getElementById('map').dataset.gesture === 'go'")  # back to Go after one
+    # Only the belief moved (the sim's robot stays where it stands): put it back where the robot is.
+    assert sim.post("/pose", sim.status()["sim"]["true_pose"]).status_code == 200
 
 
 def test_the_plan_is_drawn_while_the_robot_drives(sim, page):

@@ -228,28 +228,39 @@ def test_a_map_that_cannot_be_read_fails_the_start_with_a_reason_and_leaves_noth
         parts.stacks.start("exploring")
 
 
-def test_initialpose_puts_the_robot_there_if_it_fits(parts):
+def _estimate(parts, pub, x, y, yaw):
+    msg = PoseWithCovarianceStamped()
+    msg.header.frame_id, msg.header.stamp = parts.config.ros.frames.map, rospy.Time.now()
+    write_pose(msg.pose.pose, Pose2D(x, y, yaw))
+    pub.publish(msg)
+
+
+def _reported(parts):
+    return parts.client.get("/status").get_json()["pose"]
+
+
+def test_initialpose_sets_what_localization_believes_never_where_the_robot_is(parts):
+    """As AMCL: the estimate re-initialises the belief; the robot stays where it stands, and plans from the belief."""
     parts.stacks.start("navigation")
     pub = rospy.Publisher(parts.config.modes.initial_pose_topic, PoseWithCovarianceStamped, queue_size=1)
+    plans = Recorder(parts.config.navigation.plan_topic, Path)
     try:
-        def estimate(x, y, yaw):
-            msg = PoseWithCovarianceStamped()
-            msg.header.frame_id, msg.header.stamp = parts.config.ros.frames.map, rospy.Time.now()
-            write_pose(msg.pose.pose, Pose2D(x, y, yaw))
-            pub.publish(msg)
-
-        wait_for(lambda: estimate(6.5, 1.2, 1.0) or parts.pose().distance_to(Pose2D(6.5, 1.2, 0)) < 1e-6,
-                 interval=0.2, message="the robot put in the kitchen")
-        assert parts.pose().yaw == pytest.approx(1.0)
-        estimate(4.0, -1.5, 0.0)  # inside the wall: ignored
-        estimate(4.6, -1.5, 0.0)  # the store room behind it: fits, so taken (the sim trusts the estimate)
-        wait_for(lambda: parts.pose().distance_to(Pose2D(4.6, -1.5, 0)) < 1e-6, message="the second estimate")
+        wait_for(lambda: _reported(parts), message="a pose from tf")
+        wait_for(lambda: _estimate(parts, pub, 6.5, 1.2, 1.0) or abs(_reported(parts)["x"] - 6.5) < 0.01,
+                 interval=0.2, message="the server's pose to follow the estimate")
+        assert _reported(parts)["yaw"] == pytest.approx(1.0, abs=0.01)
+        assert parts.pose().distance_to(Pose2D(0.0, 0.0, 0.0)) < 1e-6  # the robot did not move
+        ahead = Pose2D(6.5 + 0.5 * math.cos(1.0), 1.2 + 0.5 * math.sin(1.0), 1.0)
+        assert parts.goto(ahead.x, ahead.y, ahead.yaw) == "succeeded"
+        first = plans.snapshot()[0][1].poses[0].pose.position
+        assert math.hypot(first.x - 6.5, first.y - 1.2) < 0.1  # planned from the belief, not from the origin
+        true = parts.pose()  # the robot drove its 0.5 m from where it really was, along its own heading
+        assert true.distance_to(Pose2D(0.5, 0.0, 0.0)) < 0.15, true
+        believed = _reported(parts)
+        assert math.hypot(believed["x"] - ahead.x, believed["y"] - ahead.y) < 0.15, believed
     finally:
+        plans.close()
         pub.unregister()
-    assert parts.sim.world.teleport(Pose2D(4.0, -1.5, 0.0)) is False
-    wait_for(lambda: parts.client.get("/status").get_json()["pose"], message="a pose from tf")
-    wait_for(lambda: abs(parts.client.get("/status").get_json()["pose"]["x"] - 4.6) < 0.05,
-             message="the server's pose follows the estimate")
 
 
 def test_every_plan_is_published_as_a_path_in_the_map_frame(parts):

@@ -16,7 +16,9 @@ The backend (``modes/launched.py`` on the robot, ``modes/simulated.py`` with ``-
 the work: ``start(mode, map_yaml_or_None, on_exit)`` blocks until the stack is ready or raises
 StackFailed; ``stop()`` is idempotent; an optional ``serves_goals(mode)`` says whether the
 mode runs move_base (no: "running" does not wait for goals to reach one). ``relocalize(pose)``
-publishes the robot's pose estimate (``ros/initial_pose.py``). Pure: no rospy, no Flask.
+publishes the robot's pose estimate (``ros/initial_pose.py``). A dock the server set after a
+switch is an assumption (``localization`` in every status, ``assumed_pose.py``) until
+``set_pose`` or ``confirm_pose``. Pure: no rospy, no Flask.
 """
 
 import datetime
@@ -28,6 +30,7 @@ import time
 from flask_move_server.errors import ModesOff, ModeSwitching, StackFailed, WrongMode
 from flask_move_server.maps.catalogue import MapCatalogue
 from flask_move_server.modes import relocalizing, state_file
+from flask_move_server.modes.assumed_pose import AssumedPose
 from flask_move_server.modes.restarts import RestartBudget
 from flask_move_server.modes.targets import IDLE, OUTSIDE, Target, Targets
 
@@ -62,6 +65,7 @@ class ModeManager:
         self._up = False  # the backend may have a stack running (stop it before the next start)
         self.restart_budget = RestartBudget(config.modes, clock)
         self._unsaved = None  # why the last mode could not be remembered, said in every message until one is
+        self._assumed = AssumedPose()  # the pose the server set (the dock) and nobody confirmed yet
         # Until restore(): idle with nothing started; without a backend, the outside stack's navigation.
         self._target = Target("idle") if backend else Target("navigation")
         self._status = self._body(self._target, "running", IDLE if backend else OUTSIDE)
@@ -137,6 +141,7 @@ class ModeManager:
         self._busy = True
         self._gen += 1
         self._target = target
+        self._assumed.settle()  # the next stack's localization starts afresh
         self._set(target, state, message)
 
     def _spawn(self, work, *args):
@@ -173,11 +178,12 @@ class ModeManager:
                 log.exception("the %s stack could not start", target.mode)
             return str(exc) or type(exc).__name__
         late = self._await_goals() if self._serves_goals(target.mode) else ""
+        assumed = None
         if relocalize:
-            note = relocalizing.after_start(target, self.targets.waypoints_path, self._publish_pose)
+            note, assumed = relocalizing.after_start(target, self.targets.waypoints_path, self._publish_pose)
         else:
             note = relocalizing.restarted_note(target, self.restart_budget.used)
-        self._running(gen, target, note + late)
+        self._running(gen, target, note + late, assumed)
         return None
 
     def _serves_goals(self, mode):
@@ -195,11 +201,16 @@ class ModeManager:
                 return "; move_base does not answer this server's goals yet (GET /health)"
         return ""
 
-    def _running(self, gen, target, message):
-        """Remember ``target`` for the next start, then say it runs (a waiter finds it remembered)."""
+    def _running(self, gen, target, message, assumed=None):
+        """Remember ``target`` for the next start, then say it runs (a waiter finds it remembered).
+
+        ``assumed``: the waypoint the server set the pose at, unconfirmed (said with the status).
+        """
         unsaved = self._remember(target)
         with self._changed:
             self._unsaved = unsaved
+            if assumed is not None and gen == self._gen:
+                self._assumed.assume(assumed)
             self.restart_budget.running()
             self._set(target, "running", message)
             self._release(gen)  # in the same breath: a crash from now on is this run's
@@ -246,7 +257,8 @@ class ModeManager:
         message = _bounded(message)
         if self._unsaved:
             message = "{}; {}".format(message, self._unsaved) if message else self._unsaved
-        return {"mode": target.mode, "map": target.map, "state": state, "since": _now_iso(), "message": message}
+        return {"mode": target.mode, "map": target.map, "state": state, "since": _now_iso(), "message": message,
+                "localization": self._assumed.as_dict()}
 
     # crashes ---------------------------------------------------------------
 
@@ -319,7 +331,7 @@ class ModeManager:
         would miss the pose or overwrite it with the map's dock, while the answer said ok.
         """
         with self._changed:
-            busy, target = self._busy, self._target
+            busy, target, gen = self._busy, self._target, self._gen
         if busy:
             raise ModeSwitching("A switch to {} is under way, so a pose now would be lost; wait until GET /mode "
                                 "says running, or give the pose with the switch (POST /mode with \"pose\")."
@@ -332,6 +344,31 @@ class ModeManager:
             raise WrongMode("While mapping, the map is built around where the robot started, and SLAM takes "
                             "no pose; save the map, then set the pose when navigating on it.")
         self._publish_pose(pose)
+        with self._changed:
+            if gen == self._gen:
+                self._settle_assumption()
+
+    def confirm_pose(self):
+        """The owner says the robot is where localization believes: the assumed pose is settled.
+
+        Returns the ``localization`` status; ModeSwitching while a switch is under way (the pose
+        being confirmed is not the one the new stack will believe). Nothing assumed: nothing to do.
+        """
+        with self._changed:
+            if self._busy:
+                raise ModeSwitching("A switch to {} is under way: confirm the robot's pose once GET /mode says "
+                                    "running.".format(self._target.describe()))
+            self._settle_assumption()
+            return self._assumed.as_dict()
+
+    def _settle_assumption(self):
+        """Under the lock: the pose is the owner's now; the status (and a ``mode`` event) say so if it changed."""
+        if not self._assumed.settle():
+            return
+        self._status = dict(self._status, localization=self._assumed.as_dict())
+        self._changed.notify_all()
+        if self._events is not None:
+            self._events.publish("mode", dict(self._status))
 
     def _publish_pose(self, pose):
         if self._relocalize is None:

@@ -4,7 +4,8 @@ After a switch to navigation on a named map the robot's pose is set for it (RViz
 "2D Pose Estimate"): the pose given with the switch, else the map's ``dock`` waypoint when it
 has one, else the running message asks for ``POST /pose``. Navigation on the stack's own map
 (map null) is left as the stack sets it, as before modes existed. After a restart of a crashed
-stack the robot has moved since, so nothing is set and the message says to check. Waypoints are
+stack the robot has moved since, so nothing is set and the message says to check. The dock set
+by the server is an assumption until the owner confirms or sets the pose (``assumed_pose.py``). Waypoints are
 read with the waypoints file's own loader. Pure: no rospy, no Flask.
 """
 
@@ -60,28 +61,33 @@ NO_DOCK = "running; set the robot's pose (POST /pose) \u2013 the map has no dock
 
 
 def after_start(target, waypoints_path, publish):
-    """Set the robot's pose for a switch to ``target`` that now runs; the running message.
+    """Set the robot's pose for a switch to ``target`` that now runs.
 
     ``waypoints_path(map_name)``: that map's waypoints file; ``publish(pose)``: the estimate out.
+    Returns (the running message, the waypoint the pose was assumed at or None): the dock set
+    by the server is an assumption (``assumed_pose.py``), a pose given with the switch is not.
     """
     if target.mode != "navigation":
-        return target.note or MAPPING
+        return target.note or MAPPING, None
     if target.pose is not None:
-        return _publish_note(publish, target.pose, "the given pose")
+        return _publish_note(publish, target.pose, "the given pose")[0], None
     if target.map is None:
-        return OWN_MAP
+        return OWN_MAP, None
     found = dock_pose(waypoints_path(target.map))
     if found is None:
-        return NO_DOCK
-    return _publish_note(publish, found, "the dock waypoint")
+        return NO_DOCK, None
+    note, published = _publish_note(publish, found, "the dock waypoint")
+    return note, DOCK if published else None
 
 
 def _publish_note(publish, pose, what):
+    """(the running message, whether the estimate went out)."""
     try:
         publish(pose)
     except Exception as exc:  # ROS down, no publisher: the stack runs, say the pose is not set
-        return "running; the robot's pose could not be set ({}): POST /pose".format(exc)
-    return "running; the robot's pose was set to {} ({:.2f}, {:.2f}, {:.2f})".format(what, pose.x, pose.y, pose.yaw)
+        return "running; the robot's pose could not be set ({}): POST /pose".format(exc), False
+    return "running; the robot's pose was set to {} ({:.2f}, {:.2f}, {:.2f})".format(
+        what, pose.x, pose.y, pose.yaw), True
 
 
 def restarted_note(target, restarts):

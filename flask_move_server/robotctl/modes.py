@@ -54,7 +54,9 @@ def follow_mode(client, timeout=None):
 
 
 def cmd_pose(client, args):
-    """Tell localization where the robot is: at a waypoint, or at X Y YAW (map frame)."""
+    """Tell localization where the robot is: at a waypoint, or at X Y YAW (map frame); or confirm it."""
+    if args.confirm:
+        return _confirm_pose(client, args.where)
     if len(args.where) == 1:
         body = {"name": args.where[0]}
     elif len(args.where) == 3:
@@ -68,6 +70,15 @@ def cmd_pose(client, args):
     pose = answer.get("pose") or {}
     _say("the robot's pose is set to {}({:.2f}, {:.2f}, {:.2f}).".format(
         answer["name"] + " " if answer.get("name") else "", pose.get("x"), pose.get("y"), pose.get("yaw")))
+    return ExitStatus.OK
+
+
+def _confirm_pose(client, where):
+    if where:
+        raise ClientError("pose --confirm takes nothing else: it says the pose the robot holds is right.",
+                          ExitStatus.USAGE)
+    client.post("/pose", {"confirm": True})
+    _say("the robot's pose is confirmed.")
     return ExitStatus.OK
 
 
@@ -93,9 +104,11 @@ def add_map_actions(actions, positive):
 
 
 def add_pose_parser(sub):
-    """``robotctl pose NAME|X Y YAW``."""
-    p = sub.add_parser("pose", help="set the robot's pose: NAME (a waypoint) or X Y YAW")
-    p.add_argument("where", nargs="+", metavar="NAME|X Y YAW")
+    """``robotctl pose NAME|X Y YAW``, ``robotctl pose --confirm``."""
+    p = sub.add_parser("pose", help="set the robot's pose: NAME (a waypoint) or X Y YAW; --confirm: it is right")
+    p.add_argument("where", nargs="*", metavar="NAME|X Y YAW")
+    p.add_argument("--confirm", action="store_true",
+                   help="the robot is where it believes (the dock assumed after a switch): say so, set nothing")
     p.set_defaults(run=cmd_pose)
 
 

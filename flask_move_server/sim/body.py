@@ -29,15 +29,6 @@ class RobotBody:
         with self._lock:
             return self._pose
 
-    def place(self, pose):
-        """Put the robot at ``pose`` if its body fits there (not in or too close to an obstacle); True if so."""
-        if self.costmap.lethal_at(pose.x, pose.y):
-            return False
-        with self._lock:
-            self._pose = pose
-            self.bumped = False
-        return True
-
     def step(self, left, right, dt):
         """Move for ``dt`` seconds at wheel ground speeds ``left``, ``right``; returns the new pose."""
         v = (left + right) / 2.0

@@ -83,7 +83,7 @@ class Simulation:
         own_planner = planner.Planner(self.costmap)
         self.move_base = MoveBaseStandIn(
             sim, config.navigation.action, config.drive.cmd_vel_topic, config.navigation.simple_goal_topic,
-            config.ros.frames, node, own_planner, planner_limits(sim), self.world.pose,
+            config.ros.frames, node, own_planner, planner_limits(sim), self.world.believed_pose,
             plan_topic=config.navigation.plan_topic, serve=False, odom_topic=config.drive.odom_topic)
         self.stacks = SimulatedStack(config, node, self.world, self.move_base, (self.map_path, grid, own_planner))
         if autostart:

@@ -14,8 +14,14 @@ the A1 (motor backwards: the frame's +x points back, yaw π, 0.12 m up), with th
 ``base_link → laser`` the launch files publish on the robot, so everything downstream (the
 doctor's box test, RViz, a real AMCL or gmapping against this world) sees what the robot gives.
 ``/map`` is not the world's: the mode in force publishes it (``map_server.py``,
-``mapping.py``). A pose on ``/initialpose`` (RViz's 2D Pose Estimate) puts the
-robot there, if its body fits: the sim takes the estimate as the truth.
+``mapping.py``).
+
+A pose on ``/initialpose`` (RViz's 2D Pose Estimate, the server's ``POST /pose``, the dock
+after a switch) changes what the AMCL stand-in *believes*, never where the robot is, as for
+AMCL (``handleInitialPoseMessage``: the filter is set around the given pose, moved on by the
+odometry since the message's stamp). ``belief.py`` keeps it: converging to the truth as the
+robot moves when the truth lies within the estimate's spread, else kept, so a robot told it is
+at the dock while it stands in the kitchen plans and drives from the dock, as a real one would.
 """
 
 import collections
@@ -32,6 +38,7 @@ from sensor_msgs.msg import LaserScan
 
 from flask_move_server.geometry import Pose2D, compose, interpolate, inverse
 from flask_move_server.ros.convert import pose_from_msg, transform_message, write_pose
+from flask_move_server.sim.belief import Belief
 
 log = logging.getLogger(__name__)
 
@@ -57,6 +64,7 @@ class SimWorld:
         self._history = collections.deque(maxlen=max(10, int(sim_config.rate * 3)))
         self._stop = threading.Event()
         self.localizing = threading.Event()  # set: publish map → odom and /amcl_pose (the navigation mode sets it)
+        self.belief = Belief()  # what the AMCL stand-in believes, beside the truth
         self._thread = None
         self._pubs = None
         self._subs = ()
@@ -73,7 +81,7 @@ class SimWorld:
             "tf_static": tf2_ros.StaticTransformBroadcaster(),
         }
         self._pubs["tf_static"].sendTransform(laser_mount_message(self.frames.base_link, self.config.laser_frame))
-        if self.stand_ins:  # the AMCL stand-in, and pose estimates taken as the truth
+        if self.stand_ins:  # the AMCL stand-in and the pose estimates it takes
             self._pubs["amcl"] = rospy.Publisher(self._amcl_topic, PoseWithCovarianceStamped, queue_size=1)
             self._pubs["tf"] = tf2_ros.TransformBroadcaster()
             self._subs = (rospy.Subscriber(self._odom_topic, Odometry, self._on_odom, queue_size=5),
@@ -86,8 +94,17 @@ class SimWorld:
                  self.body.costmap.resolution, self.body.pose.as_dict(), self.config.speed_factor)
 
     def pose(self):
-        """The robot's true pose in the map frame (what the AMCL stand-in reports)."""
+        """The robot's true pose in the world (the map frame of a map drawn true)."""
         return self.body.pose
+
+    def believed_pose(self):
+        """Where localization believes the robot is (tf map → base_link): what move_base plans and drives from.
+
+        In navigation the AMCL stand-in's belief; otherwise the truth (mapping: SLAM knows the
+        pose it built the map around).
+        """
+        true = self.body.pose
+        return self.belief.of(true) if self.localizing.is_set() else true
 
     # the world's clock -----------------------------------------------------------
 
@@ -125,28 +142,36 @@ class SimWorld:
             return
         odom = pose_from_msg(msg.pose.pose)
         true = self.pose_at(msg.header.stamp.to_sec())
-        map_to_odom = compose(true, inverse(odom))
+        self.belief.moved(true)
+        belief = self.belief.of(true)
+        map_to_odom = compose(belief, inverse(odom))
         self._pubs["tf"].sendTransform(
             transform_message(map_to_odom, msg.header.stamp, self.frames.map, msg.header.frame_id or self.frames.odom))
-        self._pubs["amcl"].publish(amcl_pose_message(true, msg.header.stamp, self.frames.map))
+        self._pubs["amcl"].publish(amcl_pose_message(belief, msg.header.stamp, self.frames.map))
 
     def _on_initial_pose(self, msg):
         frame = msg.header.frame_id.lstrip("/")
         if frame not in ("", self.frames.map):
             log.warning("simulated world: ignoring /initialpose in frame %r (the sim takes %r)", frame, self.frames.map)
             return
-        self.teleport(pose_from_msg(msg.pose.pose))
+        if not self.localizing.is_set():
+            log.info("simulated world: ignoring /initialpose: no localization runs (not navigating)")
+            return
+        stamp = msg.header.stamp.to_sec() or rospy.get_time()
+        covariance = msg.pose.covariance
+        self.believe(pose_from_msg(msg.pose.pose), stamp, math.sqrt(max(covariance[0], covariance[7], 0.0)),
+                     math.sqrt(max(covariance[35], 0.0)))
 
-    def teleport(self, pose):
-        """Put the robot at ``pose`` (map frame == world frame) if its body fits there; True when it does."""
-        if not self.body.place(pose):
-            log.warning("simulated world: ignoring the pose estimate %s: the robot does not fit there "
-                        "(in or too close to an obstacle, or off the map)", pose.as_dict())
-            return False
-        self._history.clear()
-        self._history.append((rospy.get_time(), pose))
-        log.info("simulated world: the robot was put at %s (a pose estimate taken as the truth)", pose.as_dict())
-        return True
+    def believe(self, estimate, stamp=None, sigma_xy=0.0, sigma_yaw=0.0):
+        """Localization is told the robot was at ``estimate`` at ROS time ``stamp`` (None: now).
+
+        The true robot stays where it is; the belief moves with it from there on, and converges to
+        it if the truth lies within the estimate's spread (``sigma_xy`` m, ``sigma_yaw`` rad).
+        """
+        true = self.body.pose if stamp is None else self.pose_at(stamp)
+        inside = self.belief.estimate(estimate, true, sigma_xy, sigma_yaw)
+        log.info("simulated world: localization now believes the robot is at %s (it really is at %s; %s)",
+                 estimate.as_dict(), true.as_dict(), "converging as it moves" if inside else "too far to converge")
 
     def pose_at(self, stamp):
         """The true pose at ROS time ``stamp`` (seconds), interpolated from the recent history."""

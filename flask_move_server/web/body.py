@@ -103,6 +103,8 @@ _EXAMPLES = {
     frozenset({"x", "y", "yaw", "from"}): '{"x": 1.0, "y": 2.0, "yaw": 0.0} or {"from": "current"}',
     frozenset({"mode", "map", "pose", "wait"}): '{"mode": "navigation", "map": "flat"}',
     frozenset({"x", "y", "yaw", "name"}): '{"x": 1.0, "y": 2.0, "yaw": 0.0} or {"name": "dock"}',
+    frozenset({"x", "y", "yaw", "name", "confirm"}):
+        '{"x": 1.0, "y": 2.0, "yaw": 0.0}, {"name": "dock"} or {"confirm": true}',
     frozenset({"name", "overwrite", "then"}): '{"name": "flat"}',
 }
 

@@ -1,4 +1,4 @@
-"""Modes over HTTP: ``GET /mode``, ``POST /mode`` (switch), ``POST /pose`` (set the robot's pose).
+"""Modes over HTTP: ``GET /mode``, ``POST /mode`` (switch), ``POST /pose`` (set or confirm the robot's pose).
 
 The routes validate the body and call the mode manager (``modes/manager.py``), never rospy.
 A switch answers 202 at once (the stack starts in the background; ``GET /mode`` and the
@@ -17,6 +17,7 @@ modes = Blueprint("modes", __name__)
 
 MODE_FIELDS = ("mode", "map", "pose", "wait")
 POSE_FIELDS = ("x", "y", "yaw", "name")
+CONFIRM_ONLY = 'To confirm the robot\'s pose, send {"confirm": true} alone.'
 
 
 def _modes():
@@ -78,12 +79,22 @@ def _waypoint_pose(name):
 
 @modes.route("/pose", methods=["POST"])
 def post_pose():
-    data = json_object(POSE_FIELDS)
+    data = json_object(POSE_FIELDS + ("confirm",))
+    if "confirm" in data:
+        return _confirm(data)
     if not data:
-        raise BadRequest('Say where the robot is: {"x": 1.0, "y": 2.0, "yaw": 0.0} or {"name": "dock"}.')
+        raise BadRequest('Say where the robot is: {"x": 1.0, "y": 2.0, "yaw": 0.0} or {"name": "dock"}; '
+                         'or {"confirm": true} when it is where the robot believes.')
     pose = _pose_of(data, _waypoint_pose)
     _modes().set_pose(pose)
-    body = {"status": "ok", "pose": pose.as_dict()}
+    body = {"status": "ok", "pose": pose.as_dict(), "localization": _modes().status()["localization"]}
     if "name" in data:
         body["name"] = data["name"]
     return jsonify(body)
+
+
+def _confirm(data):
+    """``{"confirm": true}``: the pose localization holds is right (the dock it was assumed at, say)."""
+    if data["confirm"] is not True or len(data) > 1:
+        raise BadRequest(CONFIRM_ONLY)
+    return jsonify({"status": "ok", "confirmed": True, "localization": _modes().confirm_pose()})

@@ -133,13 +133,20 @@ def _waypoint_item():
 
 def _mode_paths(config):
     """``/mode`` (read, switch) and ``/pose`` (set the robot's pose): docs/api.md "Maps and modes"."""
+    localization = _object({"assumed": {"type": "boolean"},
+                            "from": {"type": "string", "nullable": True, "description": "the waypoint (dock)"},
+                            "since": {"type": "string", "format": "date-time", "nullable": True}},
+                           ["assumed", "from", "since"])
     mode = _object({"mode": {"enum": list(MODES)}, "map": {"type": "string", "nullable": True},
                     "state": {"enum": ["starting", "running", "stopping", "failed"]},
-                    "since": {"type": "string", "format": "date-time"}, "message": {"type": "string"}},
-                   ["mode", "map", "state", "since", "message"])
+                    "since": {"type": "string", "format": "date-time"}, "message": {"type": "string"},
+                    "localization": dict(localization, description="the pose set by the server, unconfirmed")},
+                   ["mode", "map", "state", "since", "message", "localization"])
     pose = _object({"x": _coordinate(POSITION_LIMIT), "y": _coordinate(POSITION_LIMIT),
                     "yaw": _coordinate(YAW_LIMIT)}, ["x", "y"])
     by_name = _object({"name": _name("a waypoint's name")}, ["name"])
+    confirm = _object({"confirm": {"enum": [True], "description": "the pose localization holds is right"}},
+                      ["confirm"])
     wait = {"type": "number", "minimum": 0, "maximum": config.modes.stop_timeout + config.modes.start_timeout,
             "description": "seconds to wait for the mode to run before answering"}
     switch = _object({"mode": {"enum": list(MODES)},
@@ -155,9 +162,10 @@ def _mode_paths(config):
                                {200: dict(switched, description="running (with wait)"),
                                 202: dict(switched, description="switching")}, errors=(404, 409, 503)),
         },
-        "/pose": {"post": _operation("Set the robot's pose for localization (RViz's 2D Pose Estimate)",
-                                     {"oneOf": [pose, by_name]},
-                                     {200: _ok({"pose": _ref("Pose"), "name": {"type": "string"}})},
+        "/pose": {"post": _operation("Set the robot's pose for localization (RViz's 2D Pose Estimate), or confirm it",
+                                     {"oneOf": [pose, by_name, confirm]},
+                                     {200: _ok({"pose": _ref("Pose"), "name": {"type": "string"},
+                                                "confirmed": {"enum": [True]}, "localization": localization})},
                                      errors=(404, 409, 503))},
     }
 

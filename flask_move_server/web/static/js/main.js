@@ -11,6 +11,7 @@ import {initPlaces, loadWaypoints, markPlace} from "./places.js";
 import {initOverlays} from "./overlays.js";
 import {initDriveSpeed} from "./drivespeed.js";
 import {initHome} from "./home.js";
+import {initWhereabouts, showWhereabouts, noMapInUse} from "./whereabouts.js";
 
 const $ = (id) => document.getElementById(id);
 const map = new MapView($("map"), {overlays: [$("gesture")]});
@@ -101,11 +102,12 @@ async function loadMap(tries = 3) {
   try { meta = await api("GET", "/map"); } catch (e) {
     if (mine !== mapLoads) return;
     if (e.status === 404) { map.setMap(null); mapVersion = mapEtag = null; }
-    $("map-note").textContent = e.status === 404 ? "no map in use" : e.message;
+    $("map-note").textContent = e.status !== 404 ? e.message : noMapInUse() ? "" : "waiting for the map";
     return;
   }
   const headers = mapEtag && meta.version === mapVersion ? {"If-None-Match": mapEtag} : {};
   const response = await authorisedFetch("/map/image", {headers});
+  if (mine !== mapLoads) return;  // a newer load (the map gone meanwhile, say) tells what is true now
   if (response.status === 304) { $("map-note").textContent = ""; return; }
   if (!response.ok) { $("map-note").textContent = "the map image did not load"; return; }
   const etag = response.headers.get("ETag") || "";
@@ -155,9 +157,10 @@ export function setGesture(mode) {
   $("map").dataset.gesture = mode;
 }
 
-/** The note on the map when the grey robot needs a word: lost connection or an old pose. */
+/** The note on the map when the grey robot needs a word: lost connection, no map in use, or an old pose. */
 function showStaleNote() {
   const note = !isLive() ? "robot not connected: its last known position" :
+    noMapInUse() ? (map.robot ? "no map in use: the robot's last known position" : "no map in use") :
     !map.robot ? "position unknown" : map.robotStale() ? "position is old (localisation or ROS stalled)" : "";
   $("stale-note").textContent = note;
 }
@@ -186,6 +189,13 @@ function enableControls() {
   if (still) { joystick.release(); keys.release(); }
 }
 
+/** A mode body to the top bar, the where-is-the-robot banner and the stale note. */
+function showModes(m) {
+  showMode(m);
+  showWhereabouts(m);
+  showStaleNote();
+}
+
 /** After every (re)connect: read the whole state again, never trusting what the page held. */
 function resync() {
   quietly(api("GET", "/status").then((s) => {
@@ -194,7 +204,7 @@ function resync() {
     showStatus(s);
     if (s.estop) showEstop(s.estop);
   }));
-  api("GET", "/mode").then(showMode, (e) => { if (e.status === 404) $("mode").textContent = "robot"; });
+  api("GET", "/mode").then(showModes, (e) => { if (e.status === 404) $("mode").textContent = "robot"; });
   quietly(loadWaypoints());
   quietly(loadMap());
   quietly(loadMaps());
@@ -209,7 +219,7 @@ live.on("estop", showEstop);
 live.on("plan", (p) => map.setPlan(p.poses));
 live.on("waypoints", () => quietly(loadWaypoints()));
 live.on("map", (m) => { if (m.version !== mapVersion) quietly(loadMap()); });
-live.on("mode", (m) => { showMode(m); quietly(loadMaps()); quietly(loadMap()); });
+live.on("mode", (m) => { showModes(m); quietly(loadMaps()); quietly(loadMap()); });
 
 // ---- controls -------------------------------------------------------------------------
 
@@ -257,6 +267,7 @@ initNotices();
 initOverlays({live, map});
 initDriveSpeed({live, joystick, keys});
 initHome({sendGoal, map, report});
+initWhereabouts({call, setGesture});
 setGesture("go");
 showConnection("connecting");
 live.start();
