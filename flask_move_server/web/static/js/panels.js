@@ -1,6 +1,7 @@
 // The Maps panel: the mode the robot is in (always shown in the top bar), start mapping,
 // save the growing map, the saved maps with thumbnails to navigate on, relocalize.
 import {api, authorisedFetch} from "./api.js";
+import {withoutApi} from "./words.js";
 
 const $ = (id) => document.getElementById(id);
 let ctx = null;
@@ -14,11 +15,11 @@ export function showMode(m) {
   let text = (MODE_WORDS[m.mode] || m.mode) + (m.mode === "navigation" ? " on " + (m.map || "the default map") : "");
   if (m.state !== "running") text += " · " + m.state;
   chip.textContent = text;
-  chip.title = m.message || "";
+  chip.title = withoutApi(m.message || "");  // the server words it for curl too; a tap shows it
   chip.dataset.mode = m.mode;
   chip.dataset.map = m.map || "";
   chip.dataset.state = m.state;
-  if (m.state === "failed" && m.message && ctx) ctx.report(new Error(m.message));
+  if (m.state === "failed" && m.message && ctx) ctx.report(new Error(m.message), "mode");
   $("save-map").hidden = m.mode !== "mapping";
   $("start-mapping").hidden = m.mode === "mapping";
 }
