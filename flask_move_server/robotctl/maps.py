@@ -35,14 +35,21 @@ def cmd_save(client, args):
     with _in_robotctl_words(args.name):
         answer = client.request("POST", "/maps", body, timeout=max(client.timeout, SAVE_TIMEOUT))
     info = answer.get("map") or {}
-    _say("saved map {} ({}{}).".format(args.name, _size(info), ", with a copy of the waypoints"
-                                       if answer.get("adopted_waypoints") else ""))
+    _say("saved map {} ({}{}).".format(args.name, _size(info), _places(answer, info)))
     if "mode_error" in answer:
         _say("robotctl: saved, but not switched to it: {}".format(answer["mode_error"].get("message")), sys.stderr)
         return ExitStatus.ERROR
     if args.then_navigate:
         _say("switching to navigation on {} ('robotctl status' follows it).".format(args.name))
     return ExitStatus.OK
+
+
+def _places(answer, info):
+    """What the saved map's places are: a copy of the waypoints file's, or those marked while mapping."""
+    if answer.get("adopted_waypoints"):
+        return ", with a copy of the waypoints"
+    count = info.get("waypoints") or 0
+    return ", with the {} place{} marked while mapping".format(count, "" if count == 1 else "s") if count else ""
 
 
 def cmd_list(client, args):

@@ -24,7 +24,7 @@ ERROR_CODES = {
     404: "unknown_waypoint (with suggestions), unknown_map, no_map, not_found: no such waypoint, map or endpoint",
     405: "method_not_allowed: the path takes other methods (the Allow header lists them)",
     409: "navigation_failed (with state), no_pose, estop_latched, estop_button_pressed, waypoints_file, "
-         "wrong_mode, map_exists, map_in_use, mode_switching, modes_off",
+         "wrong_mode, map_exists, map_in_use, map_configured, mode_switching, modes_off",
     413: "body_too_large: the body is over server.max_body_bytes",
     503: "ros_unavailable, move_base_unavailable, drive_error, shutting_down, waypoints_locked, map_file, "
          "no_map_received, stack_failed, too_many_streams",
@@ -203,6 +203,7 @@ def _map_info():
                     "resolution": {"type": "number", "nullable": True},
                     "origin": {"type": "array", "items": {"type": "number"}, "nullable": True},
                     "modified": {"type": "string"}, "waypoints": {"type": "integer"},
+                    "source": {"enum": ["saved", "configured"]},
                     "active": {"type": "boolean"}, "problem": {"type": "string"}})
 
 
