@@ -78,6 +78,16 @@ def test_the_configured_map_is_listed_described_drawn_and_never_renamed_or_delet
     assert sim.get("/maps/demo").status_code == 200
 
 
+def test_robotctl_lists_the_configured_map_and_says_why_it_cannot_remove_it(sim, capsys):
+    from flask_move_server.robotctl import cli as robotctl
+
+    assert robotctl.main(["--url", sim.url, "map", "list"]) == 0
+    demo = [line for line in capsys.readouterr().out.splitlines() if " demo " in line]
+    assert len(demo) == 1 and demo[0].startswith("*") and demo[0].endswith("(configured)")
+    assert robotctl.main(["--url", sim.url, "map", "rm", "demo"]) != 0
+    assert "configured" in capsys.readouterr().err
+
+
 def test_marks_while_mapping_go_with_the_map_made_and_the_configured_map_is_chosen_again(sim):
     demo_places = sim.waypoints.read_text()
     switch(sim, {"mode": "mapping"})

@@ -76,6 +76,8 @@ _ADVICE = {
                   "or pick another name",
     "map_in_use": "{name} is the map in use: switch to another first ('robotctl map use OTHER', or "
                   "'robotctl map start' to map again)",
+    "map_configured": "{name} is the map the robot's stack was configured with, not a saved map: it cannot be "
+                      "removed or renamed",
 }
 
 
@@ -105,8 +107,9 @@ def map_table(maps, active=None):
     for m in maps:
         mark = "*" if m["name"] == active else " "
         size = m.get("problem") and "broken" or _size(m)
-        rows.append("{} {:<{w}}  {:>15}  {:>9}  {}".format(mark, m["name"], size, m.get("waypoints", 0),
-                                                             m.get("modified", ""), w=width))
+        when = m.get("modified", "") + (" (configured)" if m.get("source") == "configured" else "")
+        rows.append("{} {:<{w}}  {:>15}  {:>9}  {}".format(mark, m["name"], size, m.get("waypoints", 0), when,
+                                                             w=width))
     return rows
 
 
