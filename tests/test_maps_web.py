@@ -431,3 +431,39 @@ def test_marks_that_cannot_be_given_to_the_map_leave_no_map_behind(client, catal
     r = client.post("/maps", json={"name": "flat"})
     assert error_of(r) == (503, "map_file") and "the map was not saved" in r.get_json()["message"]
     assert files_in(catalogue.folder) == []
+
+
+# the map the stack was configured with --------------------------------------------------------
+
+
+@pytest.fixture
+def with_demo(catalogue, store, source, modes, events, robot_config, robot):
+    from flask_move_server.maps.configured import ConfiguredMap
+    from tests.conftest import ROOT
+
+    demo = ConfiguredMap("demo", os.path.join(ROOT, "config", "maps", "demo.yaml"))
+    service = MapService(catalogue, store, source, modes=modes, events=events, margin=0.1, save_timeout=0.2,
+                         configured=demo)
+    return create_app(robot_config, robot, store, events=events, maps=service).test_client()
+
+
+def test_the_configured_map_is_listed_first_and_its_name_cannot_be_taken(with_demo, catalogue):
+    client = with_demo
+    assert client.post("/maps", json={"name": "garage"}).status_code == 201
+    listed = client.get("/maps").get_json()
+    assert [(m["name"], m["source"]) for m in listed["maps"]] == [("demo", "configured"), ("garage", "saved")]
+    assert listed["active"] is None  # mapping
+    for name in ("demo", "DEMO"):
+        r = client.post("/maps", json={"name": name})
+        assert error_of(r) == (409, "map_exists") and "configured" in r.get_json()["message"]
+        assert error_of(client.patch("/maps/garage", json={"name": name})) == (409, "map_exists")
+    assert error_of(client.delete("/maps/demo")) == (409, "map_configured")
+    assert files_in(catalogue.folder) == ["garage.pgm", "garage.yaml"]
+
+
+def test_a_saved_map_of_the_configured_maps_name_hides_it(with_demo, catalogue):
+    catalogue.save("demo", room())  # dropped in before: the name means the saved map
+    listed = with_demo.get("/maps").get_json()
+    assert [(m["name"], m["source"]) for m in listed["maps"]] == [("demo", "saved")]
+    assert with_demo.delete("/maps/demo").status_code == 204
+    assert [m["source"] for m in with_demo.get("/maps").get_json()["maps"]] == ["configured"]
