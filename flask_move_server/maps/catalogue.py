@@ -343,11 +343,15 @@ def file_version(name, *paths):
     return "-".join(parts)
 
 
-def describe_file(name, yaml_path, waypoints_path, source):
-    """The :class:`MapInfo` of a map outside the folder (the configured one), read afresh; OSError if gone."""
-    facts, _ = _facts_of(yaml_path)
-    return MapInfo(name, facts["width"], facts["height"], facts["resolution"], facts["origin"],
-                   _iso_time(os.stat(yaml_path).st_mtime), _count_entries(waypoints_path),
+def describe_file(name, yaml_path, waypoints_path, source, cache):
+    """The :class:`MapInfo` of a map outside the folder (the configured one); OSError if it is gone.
+
+    ``cache``: a FileVersionCache, so its YAML and image header are read once per version.
+    """
+    modified = _iso_time(os.stat(yaml_path).st_mtime)
+    facts, _ = cache.get(yaml_path, lambda: _facts_of(yaml_path))
+    count, _ = cache.get(waypoints_path, lambda: (_count_entries(waypoints_path), ()))
+    return MapInfo(name, facts["width"], facts["height"], facts["resolution"], facts["origin"], modified, count,
                    problem=facts["problem"], source=source)
 
 

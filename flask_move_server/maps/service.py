@@ -39,6 +39,7 @@ from flask_move_server.errors import (
 from flask_move_server.maps import configured as configured_map
 from flask_move_server.maps import render
 from flask_move_server.maps.catalogue import check_map_name, describe_file, file_version
+from flask_move_server.maps.file_cache import FileVersionCache
 from flask_move_server.maps.marks import FILE_NAME as MARKS_FILE
 from flask_move_server.maps.marks import MappingMarks
 from flask_move_server.waypoints import locked_file as waypoints_file
@@ -62,6 +63,7 @@ class MapService:
         self.save_timeout = save_timeout
         self.single_file = store.path
         self.configured = configured
+        self._own_facts = FileVersionCache()  # the configured map's facts, read once per version of its files
         self.marks = marks or MappingMarks(os.path.join(os.path.dirname(store.path), MARKS_FILE), store.lock_timeout)
         self.waypoints_map = None  # the map whose waypoints the store serves (None: the single file)
         self._following = None  # the mode whose waypoints the store serves
@@ -184,7 +186,7 @@ class MapService:
 
     def _own_info(self, own):
         try:
-            return describe_file(own.name, own.path, self.single_file, configured_map.SOURCE)
+            return describe_file(own.name, own.path, self.single_file, configured_map.SOURCE, self._own_facts)
         except OSError as exc:
             raise MapFileError("The configured map {} cannot be read: {}.".format(own.path, exc.strerror)) from exc
 
