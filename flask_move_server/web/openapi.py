@@ -134,7 +134,8 @@ def _mode_paths(config):
     wait = {"type": "number", "minimum": 0, "maximum": config.modes.stop_timeout + config.modes.start_timeout,
             "description": "seconds to wait for the mode to run before answering"}
     switch = _object({"mode": {"enum": list(MODES)},
-                      "map": _name("navigation: a saved map's name (none: the stack's own map)"),
+                      "map": _name("navigation: a saved map's name, or the configured map's (GET /maps "
+                                   "\"source\": \"configured\"; none: that map too)"),
                       "pose": {"oneOf": [pose, by_name], "description": "navigation: where the robot is"},
                       "wait": wait}, ["mode"])
     switched = _json(dict(mode, properties=dict(mode["properties"], status={"enum": ["ok"]})))
