@@ -131,6 +131,8 @@ def test_use_while_mapping_can_save_first_then_uses_the_map_chosen(sim, page):
     row(page, "garden").wait_for()
     page.wait_for_function("document.getElementById('mode').textContent === 'navigating on demo'")
     page.wait_for_selector('#places li[data-name="kitchen"]', state="attached")  # the demo's own places are back
+    page.wait_for_function("document.getElementById('map').dataset.imageRect && "
+                           "!document.getElementById('map-note').textContent", timeout=30000)  # and its picture
 
 
 def test_rename_a_map_from_the_page_and_a_taken_name_is_said_in_words(sim, page):
