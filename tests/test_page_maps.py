@@ -113,6 +113,11 @@ def test_use_while_mapping_asks_and_cancelling_changes_nothing(sim, page):
     assert "Save the map being made before using flat?" in page.asked[0]
     assert "will be lost" in page.asked[1]
     page.evaluate("() => new Promise((done) => setTimeout(done))")  # the tap's handler has run to its end
+    page.answers.append(False)  # "Stop mapping? … will be lost" no
+    page.locator("#go-idle").tap()
+    wait_for(lambda: page.wait_for_timeout(20) or len(page.asked) == 3, message="Stop stack to ask")
+    assert "The map being made is not saved" in page.asked[2]
+    page.evaluate("() => new Promise((done) => setTimeout(done))")
     assert log.calls("POST", "/mode") == [] and log.calls("POST", "/maps") == []
     assert mode(sim) == ("mapping", None, "running")
     assert [w["name"] for w in sim.get("/waypoints").json()["waypoints"]] == ["shed"]
