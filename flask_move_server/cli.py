@@ -76,6 +76,7 @@ class Server:
 
     def _build_maps(self, stack, store):
         """The map in use (from the map topic), the maps folder, and the waypoints following the active map."""
+        from flask_move_server.maps import configured
         from flask_move_server.maps.catalogue import MapCatalogue
         from flask_move_server.maps.service import MapService
         from flask_move_server.ros.map_source import MapSource
@@ -87,7 +88,8 @@ class Server:
         source = MapSource(self._node, cfg.maps.topic, self.events)
         stack.callback(source.close)
         self.maps = MapService(catalogue, store, source, modes=getattr(self, "modes", None), events=self.events,
-                               margin=cfg.maps.image_margin, save_timeout=cfg.maps.save_timeout)
+                               margin=cfg.maps.image_margin, save_timeout=cfg.maps.save_timeout,
+                               configured=configured.of_config(cfg))
         return self.maps
 
     def _build_doctor(self, robot):

@@ -230,6 +230,12 @@ class MapInUse(MoveServerError, RuntimeError):
     code = "map_in_use"
 
 
+class MapConfigured(MoveServerError, RuntimeError):
+    """The map is the one the stack was configured with: its files are the configuration's, not the folder's."""
+
+    code = "map_configured"
+
+
 class MapFileError(MoveServerError, OSError):
     """A map's files cannot be read or written (folder read-only or full, a broken file)."""
 

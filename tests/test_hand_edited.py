@@ -44,8 +44,8 @@ def robot():
 @pytest.fixture
 def app(robot_config, robot, store):
     events = EventBus()
-    maps = MapService(MapCatalogue(robot_config.maps_folder()), store, FakeMapSource(), modes=FakeModes(events),
-                      events=events)
+    modes = FakeModes(events, mode="navigation")  # on the stack's own map: the waypoints file is served
+    maps = MapService(MapCatalogue(robot_config.maps_folder()), store, FakeMapSource(), modes=modes, events=events)
     return create_app(robot_config, robot, store, events=events, maps=maps)
 
 

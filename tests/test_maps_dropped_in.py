@@ -103,6 +103,7 @@ def umask_0027():
 
 @pytest.mark.parametrize("mode", ["mapping"])
 def test_a_saved_map_and_its_waypoints_are_readable_by_the_group_as_the_umask_allows(client, folder, umask_0027):
+    assert client.put("/waypoints/desk", json={"x": 1, "y": 1, "yaw": 0}).status_code == 201  # marked while mapping
     assert client.post("/maps", json={"name": "flat"}).status_code == 201
     modes = {f: stat.S_IMODE(os.stat(os.path.join(folder, f)).st_mode) for f in os.listdir(folder)}
     assert modes == {"flat.yaml": 0o640, "flat.pgm": 0o640, "flat.waypoints.yaml": 0o640}

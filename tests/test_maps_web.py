@@ -77,29 +77,50 @@ def files_in(folder):
     return sorted(os.listdir(folder)) if os.path.isdir(folder) else []
 
 
+def mark_seed(client):
+    """Mark the seed's three places while mapping, as the page's Mark does."""
+    for name, place in yaml.safe_load(SEED)["waypoints"].items():
+        r = client.put("/waypoints/" + name, json=dict(zip(("x", "y", "yaw"), place)))
+        assert r.status_code in (200, 201), r.get_json()
+
+
 # saving ------------------------------------------------------------------------------------
 
 
-def test_saving_writes_the_pair_lists_it_and_the_first_map_adopts_a_copy_of_the_waypoints(client, catalogue,
-                                                                                          robot_config):
+def test_saving_writes_the_pair_lists_it_with_the_places_marked_while_mapping(client, catalogue, robot_config,
+                                                                              service):
     assert client.get("/maps").get_json() == {"maps": [], "active": None}
+    assert client.get("/waypoints").get_json()["waypoints"] == []  # not the waypoints file's: another frame
+    mark_seed(client)
     r = client.post("/maps", json={"name": "flat"})
     assert r.status_code == 201, r.get_json()
     body = r.get_json()
-    assert body["map"]["name"] == "flat" and body["map"]["width"] == 40 and body["adopted_waypoints"] is True
+    assert body["map"]["name"] == "flat" and body["map"]["width"] == 40 and body["adopted_waypoints"] is False
     assert body["map"]["waypoints"] == 3
     assert files_in(catalogue.folder) == ["flat.pgm", "flat.waypoints.yaml", "flat.yaml"]
-    assert open(robot_config.waypoints.file).read() == SEED  # copied, never moved or emptied
+    assert yaml.safe_load(open(catalogue.waypoints_path("flat"))) == yaml.safe_load(SEED)
+    assert open(robot_config.waypoints.file).read() == SEED  # the single file is never written while mapping
     listed = client.get("/maps").get_json()
     assert [m["name"] for m in listed["maps"]] == ["flat"] and listed["active"] is None
     assert client.get("/maps/flat").get_json()["resolution"] == 0.05
 
 
-def test_only_the_first_map_adopts_the_single_files_waypoints(client, catalogue):
-    assert client.post("/maps", json={"name": "flat"}).status_code == 201
-    r = client.post("/maps", json={"name": "garage"})
+def test_a_map_saved_with_no_marks_has_no_places_and_adopts_none_of_the_single_file(client, catalogue):
+    r = client.post("/maps", json={"name": "flat"})
     assert r.status_code == 201 and r.get_json()["adopted_waypoints"] is False
-    assert not os.path.exists(catalogue.waypoints_path("garage"))
+    assert r.get_json()["map"]["waypoints"] == 0
+    assert not os.path.exists(catalogue.waypoints_path("flat"))
+
+
+def test_overwriting_a_map_replaces_its_places_by_the_marks_and_keeps_the_old_ones_in_bak(client, catalogue):
+    mark_seed(client)
+    client.post("/maps", json={"name": "flat"})
+    client.delete("/waypoints/office")
+    client.delete("/waypoints/kitchen")
+    r = client.post("/maps", json={"name": "flat", "overwrite": True})
+    assert r.status_code == 201 and r.get_json()["map"]["waypoints"] == 1
+    assert yaml.safe_load(open(catalogue.waypoints_path("flat")))["waypoints"] == {"dock": [0.0, 0.0, 0.0]}
+    assert yaml.safe_load(open(catalogue.waypoints_path("flat") + ".bak")) == yaml.safe_load(SEED)
 
 
 def test_an_existing_name_needs_overwrite(client, source, catalogue):
@@ -231,6 +252,7 @@ def test_delete_and_rename_refuse_the_active_map(client, modes):
 
 
 def test_rename_moves_the_waypoints_and_delete_removes_everything(client, catalogue):
+    mark_seed(client)
     client.post("/maps", json={"name": "flat"})
     r = client.patch("/maps/flat", json={"name": "home"})
     assert r.status_code == 200 and r.get_json()["map"]["name"] == "home"
@@ -243,8 +265,9 @@ def test_rename_moves_the_waypoints_and_delete_removes_everything(client, catalo
 
 
 def test_a_rename_to_a_bad_or_taken_name_is_refused_and_changes_nothing(client, catalogue):
-    client.post("/maps", json={"name": "flat"})
     client.post("/maps", json={"name": "garage"})
+    mark_seed(client)
+    client.post("/maps", json={"name": "flat"})
     assert error_of(client.patch("/maps/flat", json={"name": ".hidden"})) == (400, "bad_map_name")
     assert error_of(client.patch("/maps/flat", json={"name": "garage"})) == (409, "map_exists")
     assert error_of(client.patch("/maps/flat", json={})) == (400, "bad_request")
@@ -308,14 +331,19 @@ def test_waypoints_follow_the_mode_and_every_change_is_an_event(client, modes, e
     sub = events.subscribe(["waypoints"], replay=False)
     modes.switch("navigation", "garage")
     assert client.get("/waypoints").get_json()["waypoints"] == []
-    assert sub.next(1) == ("waypoints", {"map": "garage", "version": 1})
-    client.put("/waypoints/bench", json={"x": 2, "y": 1, "yaw": 0})
     assert sub.next(1) == ("waypoints", {"map": "garage", "version": 2})
+    client.put("/waypoints/bench", json={"x": 2, "y": 1, "yaw": 0})
+    assert sub.next(1) == ("waypoints", {"map": "garage", "version": 3})
     assert yaml.safe_load(open(catalogue.waypoints_path("garage")))["waypoints"] == {"bench": [2.0, 1.0, 0.0]}
-    modes.switch("mapping")
+    modes.switch("navigation")  # the stack's own map: the single waypoints file
     assert [w["name"] for w in client.get("/waypoints").get_json()["waypoints"]] == ["kitchen", "office", "dock"]
     assert client.get("/status").get_json()["waypoints"]["file"] == robot_config.waypoints.file
-    assert sub.next(1) == ("waypoints", {"map": None, "version": 3})
+    assert sub.next(1) == ("waypoints", {"map": None, "version": 4})
+    modes.switch("mapping")  # a new map being made: its own places, none yet
+    assert client.get("/waypoints").get_json()["waypoints"] == []
+    assert client.get("/status").get_json()["waypoints"]["file"] == os.path.join(
+        os.path.dirname(robot_config.waypoints.file), "mapping.waypoints.yaml")
+    assert sub.next(1) == ("waypoints", {"map": None, "version": 5})
 
 
 def test_without_a_maps_service_the_app_still_lists_the_configured_folder(robot_config, store):
@@ -325,6 +353,7 @@ def test_without_a_maps_service_the_app_still_lists_the_configured_folder(robot_
 
 
 def test_a_broken_waypoints_file_of_the_new_map_is_reported_and_never_overwritten(client, modes, catalogue):
+    mark_seed(client)
     client.post("/maps", json={"name": "flat"})
     client.post("/maps", json={"name": "garage"})
     with open(catalogue.waypoints_path("garage"), "w") as f:
@@ -340,6 +369,7 @@ def test_a_broken_waypoints_file_of_the_new_map_is_reported_and_never_overwritte
 
 
 def test_an_edit_on_disk_of_the_active_maps_waypoints_is_served_and_told(client, modes, events, catalogue):
+    mark_seed(client)
     client.post("/maps", json={"name": "flat"})
     modes.switch("navigation", "flat")
     client.get("/waypoints")
@@ -361,8 +391,9 @@ def test_robotctl_map_save_list_rm(app, capsys, modes, catalogue):
     with serve(app) as url:
         assert robotctl.main(["--url", url, "map", "list"]) == 0
         assert "no maps saved yet" in capsys.readouterr().out
+        mark_seed(app.test_client())
         assert robotctl.main(["--url", url, "map", "save", "flat"]) == 0
-        assert "saved map flat (2.0 x 1.5, with a copy of the waypoints)" in capsys.readouterr().out
+        assert "saved map flat (2.0 x 1.5, with the 3 places marked while mapping)" in capsys.readouterr().out
         assert robotctl.main(["--url", url, "map", "save", "flat"]) == 1
         assert "'robotctl map save flat --overwrite' replaces it" in capsys.readouterr().err  # its words, not HTTP's
         assert robotctl.main(["--url", url, "map", "save", "flat", "--overwrite", "--then-navigate"]) == 0
@@ -394,9 +425,45 @@ def test_a_service_built_after_the_mode_was_restored_serves_that_maps_waypoints(
     assert events.latest("waypoints") == {"map": "flat", "version": 1}
 
 
-def test_waypoints_that_cannot_be_adopted_leave_no_map_behind(client, catalogue, robot_config):
-    with open(robot_config.waypoints.file, "wb") as f:
+def test_marks_that_cannot_be_given_to_the_map_leave_no_map_behind(client, catalogue, service):
+    with open(service.marks.path, "wb") as f:
         f.write(b"waypoints:\n  caf\xe9: [1, 2, 3]\n")  # not UTF-8: the copy cannot be made
     r = client.post("/maps", json={"name": "flat"})
     assert error_of(r) == (503, "map_file") and "the map was not saved" in r.get_json()["message"]
     assert files_in(catalogue.folder) == []
+
+
+# the map the stack was configured with --------------------------------------------------------
+
+
+@pytest.fixture
+def with_demo(catalogue, store, source, modes, events, robot_config, robot):
+    from flask_move_server.maps.configured import ConfiguredMap
+    from tests.conftest import ROOT
+
+    demo = ConfiguredMap("demo", os.path.join(ROOT, "config", "maps", "demo.yaml"))
+    service = MapService(catalogue, store, source, modes=modes, events=events, margin=0.1, save_timeout=0.2,
+                         configured=demo)
+    return create_app(robot_config, robot, store, events=events, maps=service).test_client()
+
+
+def test_the_configured_map_is_listed_first_and_its_name_cannot_be_taken(with_demo, catalogue):
+    client = with_demo
+    assert client.post("/maps", json={"name": "garage"}).status_code == 201
+    listed = client.get("/maps").get_json()
+    assert [(m["name"], m["source"]) for m in listed["maps"]] == [("demo", "configured"), ("garage", "saved")]
+    assert listed["active"] is None  # mapping
+    for name in ("demo", "DEMO"):
+        r = client.post("/maps", json={"name": name})
+        assert error_of(r) == (409, "map_exists") and "configured" in r.get_json()["message"]
+        assert error_of(client.patch("/maps/garage", json={"name": name})) == (409, "map_exists")
+    assert error_of(client.delete("/maps/demo")) == (409, "map_configured")
+    assert files_in(catalogue.folder) == ["garage.pgm", "garage.yaml"]
+
+
+def test_a_saved_map_of_the_configured_maps_name_hides_it(with_demo, catalogue):
+    catalogue.save("demo", room())  # dropped in before: the name means the saved map
+    listed = with_demo.get("/maps").get_json()
+    assert [(m["name"], m["source"]) for m in listed["maps"]] == [("demo", "saved")]
+    assert with_demo.delete("/maps/demo").status_code == 204
+    assert [m["source"] for m in with_demo.get("/maps").get_json()["maps"]] == ["configured"]

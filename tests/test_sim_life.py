@@ -94,7 +94,7 @@ def test_saving_outside_mapping_is_refused_and_saving_in_mapping_switches_to_nav
     mode = _mode(sim)
     assert (mode["mode"], mode["map"]) == ("navigation", "flat")
     listed = sim.get("/maps").json()
-    assert [m["name"] for m in listed["maps"]] == ["flat"] and listed["active"] == "flat"
+    assert [m["name"] for m in listed["maps"] if m["source"] == "saved"] == ["flat"] and listed["active"] == "flat"
     refused = sim.post("/maps", {"name": "other"})
     assert refused.status_code == 409 and refused.json()["error"] == "wrong_mode"
 

@@ -71,10 +71,12 @@ class MapInfo:
     modified: str
     waypoints: int
     problem: object = None
+    source: str = "saved"  # "configured": the stack's own map (maps/configured.py)
 
     def as_dict(self):
         data = {"name": self.name, "width": self.width, "height": self.height, "resolution": self.resolution,
-                "origin": self.origin, "modified": self.modified, "waypoints": self.waypoints}
+                "origin": self.origin, "modified": self.modified, "waypoints": self.waypoints,
+                "source": self.source}
         if self.problem:
             data["problem"] = self.problem
         return data
@@ -156,14 +158,7 @@ class MapCatalogue:
     def version(self, name):
         """A version of the stored map for an ETag: its YAML's and PGM's change times and sizes."""
         name = check_map_name(name)
-        parts = [name]
-        for path in (self._existing(name), os.path.join(self.folder, name + ".pgm")):
-            try:
-                info = os.stat(path)
-                parts.append("{:x}-{:x}".format(info.st_mtime_ns, info.st_size))
-            except FileNotFoundError:
-                parts.append("none")
-        return "-".join(parts)
+        return file_version(name, self._existing(name), os.path.join(self.folder, name + ".pgm"))
 
     def load(self, name):
         """The map's :class:`~flask_move_server.maps.mapfile.Grid`; MapFileError if its files are broken."""
@@ -346,6 +341,30 @@ def _raw_meta(yaml_path):
         return bounded_yaml.read(yaml_path, occupancy.MAX_YAML_BYTES)
     except bounded_yaml.YamlRefused as exc:  # changed since it was checked
         raise ConfigError(yaml_path, None, str(exc)) from None
+
+
+def file_version(name, *paths):
+    """A version of a map's files for an ETag: each one's change time and size ("none" when missing)."""
+    parts = [name]
+    for path in paths:
+        try:
+            info = os.stat(path)
+            parts.append("{:x}-{:x}".format(info.st_mtime_ns, info.st_size))
+        except FileNotFoundError:
+            parts.append("none")
+    return "-".join(parts)
+
+
+def describe_file(name, yaml_path, waypoints_path, source, cache):
+    """The :class:`MapInfo` of a map outside the folder (the configured one); OSError if it is gone.
+
+    ``cache``: a FileVersionCache, so its YAML and image header are read once per version.
+    """
+    modified = _iso_time(os.stat(yaml_path).st_mtime)
+    facts, _ = cache.get(yaml_path, lambda: _facts_of(yaml_path))
+    count, _ = cache.get(waypoints_path, lambda: (_count_entries(waypoints_path), ()))
+    return MapInfo(name, facts["width"], facts["height"], facts["resolution"], facts["origin"], modified, count,
+                   problem=facts["problem"], source=source)
 
 
 def _facts_of(yaml_path):

@@ -12,6 +12,7 @@ from typing import Optional
 
 from flask_move_server.errors import BadMapName, BadRequest, MapFileError, UnknownMap, shown
 from flask_move_server.geometry import Pose2D
+from flask_move_server.maps import configured as configured_map
 from flask_move_server.maps.catalogue import check_map_name
 from flask_move_server.modes import relocalizing
 
@@ -67,6 +68,7 @@ class Targets:
     def __init__(self, config, catalogue):
         self.config = config
         self.catalogue = catalogue
+        self.configured = configured_map.of_config(config)  # the stack's own map, chosen by its name too
 
     def of(self, mode, map_name=None, pose=None):
         """The Target of a request; BadRequest, BadMapName, UnknownMap, MapFileError (a broken map: nothing
@@ -76,6 +78,8 @@ class Targets:
         if mode != "navigation" and (map_name is not None or pose is not None):
             raise BadRequest("Only the navigation mode takes a 'map' and a 'pose'.")
         yaml_path = None
+        if self._is_configured(map_name):
+            map_name = None  # the stack's own map: map null, as before it had a name
         if map_name is not None:
             map_name = check_map_name(map_name)  # in NFC; BadMapName for a name no map can have
             yaml_path = self.catalogue.yaml_path(map_name)
@@ -85,6 +89,12 @@ class Targets:
         if isinstance(pose, str):
             pose = relocalizing.waypoint_pose(self.waypoints_path(map_name), pose, map_name)
         return Target(mode, map_name, yaml_path, pose)
+
+    def _is_configured(self, name):
+        """Does ``name`` mean the stack's own map (no saved map answers to it)?"""
+        if self.configured is None or not self.configured.answers_to(name):
+            return False
+        return configured_map.unshadowed(self.configured, self.catalogue.names()) is not None
 
     def _refuse_broken(self, name):
         problem = self.catalogue.describe(name).problem

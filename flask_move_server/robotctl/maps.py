@@ -35,14 +35,21 @@ def cmd_save(client, args):
     with _in_robotctl_words(args.name):
         answer = client.request("POST", "/maps", body, timeout=max(client.timeout, SAVE_TIMEOUT))
     info = answer.get("map") or {}
-    _say("saved map {} ({}{}).".format(args.name, _size(info), ", with a copy of the waypoints"
-                                       if answer.get("adopted_waypoints") else ""))
+    _say("saved map {} ({}{}).".format(args.name, _size(info), _places(answer, info)))
     if "mode_error" in answer:
         _say("robotctl: saved, but not switched to it: {}".format(answer["mode_error"].get("message")), sys.stderr)
         return ExitStatus.ERROR
     if args.then_navigate:
         _say("switching to navigation on {} ('robotctl status' follows it).".format(args.name))
     return ExitStatus.OK
+
+
+def _places(answer, info):
+    """What the saved map's places are: a copy of the waypoints file's, or those marked while mapping."""
+    if answer.get("adopted_waypoints"):
+        return ", with a copy of the waypoints"
+    count = info.get("waypoints") or 0
+    return ", with the {} place{} marked while mapping".format(count, "" if count == 1 else "s") if count else ""
 
 
 def cmd_list(client, args):
@@ -69,6 +76,8 @@ _ADVICE = {
                   "or pick another name",
     "map_in_use": "{name} is the map in use: switch to another first ('robotctl map use OTHER', or "
                   "'robotctl map start' to map again)",
+    "map_configured": "{name} is the map the robot's stack was configured with, not a saved map: it cannot be "
+                      "removed or renamed",
 }
 
 
@@ -98,8 +107,9 @@ def map_table(maps, active=None):
     for m in maps:
         mark = "*" if m["name"] == active else " "
         size = m.get("problem") and "broken" or _size(m)
+        when = m.get("modified", "") + (" (configured)" if m.get("source") == "configured" else "")
         rows.append("{} {}  {:>15}  {:>9}  {}".format(mark, padded(m["name"], width), size, m.get("waypoints", 0),
-                                                       m.get("modified", "")))
+                                                       when))
     return rows
 
 

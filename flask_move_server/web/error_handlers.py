@@ -33,6 +33,7 @@ STATUS = (
     (errors.EStopHeld, 409),
     (errors.MapExists, 409),
     (errors.MapInUse, 409),
+    (errors.MapConfigured, 409),
     (errors.ModeSwitching, 409),
     (errors.ModesOff, 409),
     (errors.WrongMode, 409),

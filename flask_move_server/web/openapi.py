@@ -24,7 +24,7 @@ ERROR_CODES = {
     404: "unknown_waypoint (with suggestions), unknown_map, no_map, not_found: no such waypoint, map or endpoint",
     405: "method_not_allowed: the path takes other methods (the Allow header lists them)",
     409: "navigation_failed (with state), no_pose, command_late, estop_latched, estop_button_pressed, waypoints_file, "
-         "wrong_mode, map_exists, map_in_use, mode_switching, modes_off",
+         "wrong_mode, map_exists, map_in_use, map_configured, mode_switching, modes_off",
     413: "body_too_large: the body is over server.max_body_bytes",
     503: "ros_unavailable, move_base_unavailable, drive_error, shutting_down, waypoints_locked, map_file, "
          "no_map_received, stack_failed, too_many_streams",
@@ -150,7 +150,8 @@ def _mode_paths(config):
     wait = {"type": "number", "minimum": 0, "maximum": config.modes.stop_timeout + config.modes.start_timeout,
             "description": "seconds to wait for the mode to run before answering"}
     switch = _object({"mode": {"enum": list(MODES)},
-                      "map": _name("navigation: a saved map's name (none: the stack's own map)"),
+                      "map": _name("navigation: a saved map's name, or the configured map's (GET /maps "
+                                   "\"source\": \"configured\"; none: that map too)"),
                       "pose": {"oneOf": [pose, by_name], "description": "navigation: where the robot is"},
                       "wait": wait}, ["mode"])
     switched = _json(dict(mode, properties=dict(mode["properties"], status={"enum": ["ok"]})))
@@ -220,6 +221,7 @@ def _map_info():
                     "resolution": {"type": "number", "nullable": True},
                     "origin": {"type": "array", "items": {"type": "number"}, "nullable": True},
                     "modified": {"type": "string"}, "waypoints": {"type": "integer"},
+                    "source": {"enum": ["saved", "configured"]},
                     "active": {"type": "boolean"}, "problem": {"type": "string"}})
 
 

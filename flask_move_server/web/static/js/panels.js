@@ -1,5 +1,7 @@
 // The Maps panel: the mode the robot is in (always shown in the top bar), start mapping,
-// save the growing map, the saved maps with thumbnails to navigate on, relocalize.
+// save the growing map, the maps with thumbnails to navigate on, rename or delete, relocalize.
+// The map the stack was configured with (the demo's) is listed too ("source": "configured"):
+// it can be used again, not renamed nor deleted; /mode calls it map null.
 import {api, authorisedFetch} from "./api.js";
 import {withoutApi} from "./words.js";
 
@@ -8,13 +10,20 @@ let ctx = null;
 const thumbnails = new Map();  // map name + modified -> object URL, so a list refresh does not refetch
 
 const MODE_WORDS = {idle: "idle", mapping: "mapping", navigation: "navigating"};
+let configuredName = null;  // the configured map's name in GET /maps (map null in /mode)
+let shownMode = null;  // the last GET /mode body or mode event shown
+
+function modeText(m) {
+  const text = (MODE_WORDS[m.mode] || m.mode) +
+    (m.mode === "navigation" ? " on " + (m.map || configuredName || "the default map") : "");
+  return m.state !== "running" ? text + " · " + m.state : text;
+}
 
 /** Shows a `GET /mode` body (or `mode` event) in the top bar. */
 export function showMode(m) {
   const chip = $("mode");
-  let text = (MODE_WORDS[m.mode] || m.mode) + (m.mode === "navigation" ? " on " + (m.map || "the default map") : "");
-  if (m.state !== "running") text += " · " + m.state;
-  chip.textContent = text;
+  shownMode = m;
+  chip.textContent = modeText(m);
   chip.title = withoutApi(m.message || "");  // the server words it for curl too; a tap shows it
   chip.dataset.mode = m.mode;
   chip.dataset.map = m.map || "";
@@ -24,7 +33,7 @@ export function showMode(m) {
   $("start-mapping").hidden = m.mode === "mapping";
 }
 
-/** Reads `GET /maps` into the list: thumbnail, name, Use, Delete. */
+/** Reads `GET /maps` into the list: thumbnail, name, what it is, Use, Rename, Delete. */
 let mapListLoads = 0;  // the newest request wins, as for the waypoints
 
 export async function loadMaps() {
@@ -35,24 +44,47 @@ export async function loadMaps() {
     throw e;
   }
   if (mine !== mapListLoads) return;
+  configuredName = (data.maps.find((m) => m.source === "configured") || {}).name || null;
+  if (shownMode) $("mode").textContent = modeText(shownMode);
   $("maps").replaceChildren(...data.maps.map((m) => mapRow(m, m.name === data.active)));
   $("maps").dataset.count = String(data.maps.length);
 }
 
 function mapRow(m, active) {
   const li = document.createElement("li");
+  const configured = m.source === "configured";
   li.dataset.name = m.name;
   li.dataset.active = active ? "1" : "0";
+  li.dataset.source = configured ? "configured" : "saved";
   const img = document.createElement("img");
   img.alt = "";
   thumbnail(m).then((url) => { if (url) img.src = url; });
+  const about = document.createElement("div");
+  about.className = "about";
   const name = document.createElement("span");
   name.className = "name";
   name.textContent = m.name;
-  const use = button("Use", "needs-live", () => useMap(m.name));
-  use.hidden = active;
-  li.append(img, name, use, button("Delete", "quiet", () => deleteMap(m.name)));
+  const note = document.createElement("span");
+  note.className = "note";
+  note.textContent = mapNote(m, active, configured);
+  about.append(name, note);
+  const actions = document.createElement("div");
+  actions.className = "actions";
+  if (!active) actions.append(button("Use", "needs-live", () => useMap(m.name)));
+  if (!active && !configured) {  // the map in use cannot be changed under the stack; the configured one is not ours
+    actions.append(button("Rename", "quiet", () => renameMap(m.name)), button("Delete", "quiet", () => deleteMap(m.name)));
+  }
+  li.append(img, about, actions);
   return li;
+}
+
+/** The row's second line: what the map is, and why a button is missing. */
+function mapNote(m, active, configured) {
+  const places = m.waypoints === 1 ? "1 place" : (m.waypoints || 0) + " places";
+  if (m.problem) return "broken: " + m.problem;
+  if (configured) return places + " · set up with the robot: it cannot be renamed or deleted";
+  if (active) return places + " · use another map to rename or delete it";
+  return places;
 }
 
 /** An <img> cannot send the token, so thumbnails come through fetch() as object URLs. */
@@ -83,7 +115,37 @@ const quietly = (promise) => promise.catch(() => {});
 
 function switchTo(body) { return quietly(ctx.call("POST", "/mode", body, "mode").then(showMode)); }
 
-function useMap(name) { return switchTo({mode: "navigation", map: name}); }
+const mapping = () => $("mode").dataset.mode === "mapping";
+
+/** Use a map; while mapping, the map being made is not saved yet: offer to save it first, or discard it. */
+async function useMap(name) {
+  if (mapping()) {
+    if (window.confirm("Save the map being made before using " + name + "? (Cancel: do not save it)")) {
+      if (!(await saveMap(false))) return;
+    } else if (!window.confirm("Use " + name + " without saving? The map being made and the places marked on it " +
+                               "will be lost.")) return;
+  }
+  return switchTo({mode: "navigation", map: name});
+}
+
+async function renameMap(name) {
+  const to = (window.prompt("New name for the map " + name + ":", name) || "").trim().normalize("NFC");
+  if (!to || to === name) return;
+  try {
+    await api("PATCH", "/maps/" + encodeURIComponent(name), {name: to});
+  } catch (e) {
+    ctx.report(RENAME_WORDS[e.code] ? new Error(RENAME_WORDS[e.code](name, to)) : e, "rename");
+    return;
+  }
+  quietly(loadMaps());
+}
+
+const RENAME_WORDS = {
+  map_exists: (name, to) => "There is a map called " + to + " already: pick another name for " + name + ".",
+  map_in_use: (name) => name + " is in use: use another map first, then rename it.",
+  map_configured: (name) => name + " is the robot's own map: it cannot be renamed.",
+  unknown_map: (name) => "The map " + name + " is gone (deleted elsewhere?).",
+};
 
 async function deleteMap(name) {
   if (!window.confirm("Delete the map " + name + " and its waypoints?")) return;
@@ -91,20 +153,24 @@ async function deleteMap(name) {
   quietly(loadMaps());
 }
 
-async function saveMap() {
+/** Asks for a name and saves the map being made (then navigates on it, unless `then` is false); true once saved. */
+async function saveMap(then = true) {
   const name = (window.prompt("Save this map as:") || "").trim();
-  if (!name) return;
-  let body = {name, then: "navigation"};
+  if (!name) return false;
+  let body = then ? {name, then: "navigation"} : {name};
+  let saved = true;
   try {
     await api("POST", "/maps", body, 60000);
   } catch (e) {
-    if (e.code !== "map_exists" && e.status !== 409) { ctx.report(e, "save"); return; }
-    if (!window.confirm("A map called " + name + " exists. Replace it?")) return;
+    const taken = e.code === "map_exists" && !(configuredName && name.toLowerCase() === configuredName.toLowerCase());
+    if (!taken) { ctx.report(e, "save"); return false; }  // the robot's own map's name cannot be replaced: say why
+    if (!window.confirm("A map called " + name + " exists. Replace it (and its places)?")) return false;
     body = Object.assign(body, {overwrite: true});
-    await quietly(ctx.call("POST", "/maps", body, "save", 60000));
+    saved = await ctx.call("POST", "/maps", body, "save", 60000).then(() => true, () => false);
   }
   quietly(loadMaps());
   quietly(api("GET", "/mode").then(showMode));
+  return saved;
 }
 
 /** Wires the panel's buttons; `context`: {call, report, setGesture, isLive} from main.js. */
@@ -113,9 +179,11 @@ export function initPanels(context) {
   $("start-mapping").onclick = () => {
     if (window.confirm("Start mapping? Navigation stops and a new map grows as you drive.")) switchTo({mode: "mapping"});
   };
-  $("save-map").onclick = saveMap;
+  $("save-map").onclick = () => saveMap();
   $("go-idle").onclick = () => {
-    if (window.confirm("Stop mapping or navigation?")) switchTo({mode: "idle"});
+    const question = mapping() ? "Stop mapping? The map being made is not saved: it and the places marked on it " +
+      "will be lost." : "Stop mapping or navigation?";
+    if (window.confirm(question)) switchTo({mode: "idle"});
   };
   $("relocalize").onclick = () => context.setGesture("pose");
 }
