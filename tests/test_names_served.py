@@ -177,7 +177,9 @@ def test_robotctl_commands_take_unicode_names(sim, capsys):
     assert "* Mum's room" in capsys.readouterr().out
     assert robotctl(sim, "map", "rm", "Mum's room") == ExitStatus.ERROR  # the map in use
     assert "Mum's room is the map in use" in capsys.readouterr().err
-    assert robotctl(sim, "pose", NFD_KUCHE) == ExitStatus.OK  # the map's waypoints: a copy of the first ones
+    marked = sim.call("PUT", "/waypoints/" + quote("Küche"), {"from": "current"})  # a place on this map
+    assert marked.status_code in (200, 201), marked.json()
+    assert robotctl(sim, "pose", NFD_KUCHE) == ExitStatus.OK
     assert robotctl(sim, "goto", NFD_KUCHE) == ExitStatus.OK
     assert sim.status()["navigation"]["target"] == "Küche"
     assert robotctl(sim, "stop") == ExitStatus.OK
