@@ -73,6 +73,7 @@ class Robot:
     def shutdown(self):
         """The server is stopping: stop first, refuse motion, answer every waiting /goto (ShuttingDown)."""
         self.shutting_down = True
+        self.navigator.trips = None  # the stop below ends the trip, but a restart must still say it cut one short
         self.stop()
         self.navigator.release_waiters()
 

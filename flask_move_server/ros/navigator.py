@@ -222,7 +222,7 @@ class Navigator:
         """An ended goal is old news (the mode switched, the server restarted): ``/status`` says
         ``idle``, with ``why`` as its message, until the next goal. A goal under way is left alone."""
         with self._cond:
-            if self._state not in UNDER_WAY:
+            if self._state not in UNDER_WAY and (why or self._aside is None):  # a sentence said stays said
                 self._aside = why or ""
 
     def status(self, reading=None):
