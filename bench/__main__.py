@@ -31,6 +31,7 @@ BENCHMARKS = [
     ("sim_modes", "bench_sim_modes.py", ["--switches", "2", "--drive-seconds", "30"]),
     ("events", "bench_events.py", ["--rest-seconds", "3", "--drive-seconds", "5", "--stops", "3"]),
     ("page", "bench_page.py", ["--loads", "3"]),
+    ("page_silence", "bench_page_silence.py", ["--stalls", "2"]),
     ("scan", "bench_scan.py", ["--seconds", "4", "--repeat", "500"]),
 ]
 

@@ -85,7 +85,8 @@ function showEstop(estop) {
   $("estop-banner").hidden = !estop.latched;
   document.body.dataset.estop = estop.latched ? "1" : "0";
   const by = {api: "from a phone or a script", button: "by the e-stop button"}[estop.source] || estop.source;
-  $("estop-why").textContent = estop.latched && by ? by : "";
+  const at = estop.since ? " at " + new Date(estop.since).toLocaleTimeString([], {hour: "2-digit", minute: "2-digit"}) : "";
+  $("estop-why").textContent = estop.latched && by ? by + at : "";  // the time as the phone shows times, not ISO
   enableControls();
 }
 const latched = () => document.body.dataset.estop === "1";
