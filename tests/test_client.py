@@ -10,6 +10,7 @@ import socket
 import subprocess
 import sys
 import threading
+import time
 
 import pytest
 import rospy
@@ -366,7 +367,9 @@ def test_drive_keys_become_teleop_and_release_stops(live):
         wait_for(lambda: os.read(keys, 1024), message="the drive help line")
         os.write(keys, b"w")
         wait_for(lambda: _teleops(live.calls), message="a /teleop call")
-        assert _teleops(live.calls)[0] == {"linear": 0.2, "angular": 0.0}
+        first = _teleops(live.calls)[0]
+        assert (first["linear"], first["angular"]) == (0.2, 0.0)
+        assert abs(first["valid_until"] - (time.monotonic() + 1.0)) < 0.5, "refused by the robot if it arrives late"
         for _ in range(8):  # hold the key: auto-repeat
             os.write(keys, b"w")
             threading.Event().wait(0.1)
@@ -374,7 +377,8 @@ def test_drive_keys_become_teleop_and_release_stops(live):
         wait_for(lambda: _stops(live.calls), message="a /stop when the key is released")
 
         os.write(keys, b"\x1b[D")  # left arrow: turn on the spot
-        wait_for(lambda: _teleops(live.calls)[-1] == {"linear": 0.0, "angular": 0.8}, message="a left turn")
+        wait_for(lambda: (_teleops(live.calls)[-1]["linear"], _teleops(live.calls)[-1]["angular"]) == (0.0, 0.8),
+                 message="a left turn")
         stops = len(_stops(live.calls))
         os.write(keys, b" ")
         wait_for(lambda: len(_stops(live.calls)) > stops, message="space to stop")
@@ -389,7 +393,7 @@ def test_drive_stops_the_robot_when_the_terminal_closes(live):
         wait_for(lambda: os.read(keys, 1024), message="the drive help line")
         os.write(keys, b"s")
         wait_for(lambda: _teleops(live.calls), message="a /teleop call")
-        assert _teleops(live.calls)[0] == {"linear": -0.2, "angular": 0.0}
+        assert (_teleops(live.calls)[0]["linear"], _teleops(live.calls)[0]["angular"]) == (-0.2, 0.0)
         os.close(keys)
         assert proc.wait(15) == 0
     assert live.calls[-1][:2] == ("POST", "/stop")
@@ -414,3 +418,24 @@ def test_ctrl_c_while_waiting_stops_the_robot(live):
         proc.stderr.close()
     assert live.calls[-1][:2] == ("POST", "/stop")
     wait_for(lambda: live.robot.navigator.status()["state"] == "canceled", message="the goal canceled")
+
+
+def test_drive_tells_a_late_command_and_keeps_driving(live, monkeypatch):
+    """A joystick command the robot refused as late (a stalled Wi-Fi) is said, and drive goes on."""
+    from flask_move_server.errors import ClientError
+    from flask_move_server.robotctl.api import RobotClient
+    from flask_move_server.robotctl.keyboard import KeyboardDriver
+
+    driver = KeyboardDriver(RobotClient(live.url))
+    assert driver.clock.sync() and driver.clock.deadline(1.0)["valid_until"] > time.monotonic()
+    shown = []
+    driver._show = shown.append
+    driver.command = (0.2, 0.0)
+    late = ClientError("This joystick command reached the robot 3.0 s after its deadline", ExitStatus.ERROR)
+    late.body = {"status": "error", "error": "command_late"}
+    monkeypatch.setattr(driver.client, "post", lambda path, body=None: (_ for _ in ()).throw(late))
+    driver._send(time.monotonic())
+    assert "dropped that command" in shown[-1]
+    monkeypatch.undo()
+    driver._send(time.monotonic())
+    assert _teleops(live.calls)[-1]["linear"] == 0.2

@@ -18,6 +18,7 @@ import tty
 
 from flask_move_server.errors import ClientError
 from flask_move_server.robotctl.api import ExitStatus
+from flask_move_server.robotctl.robot_clock import RobotClock
 
 # key -> (forward, turn) as fractions of the speeds; left turn is positive (REP-103).
 MOTION = {
@@ -26,6 +27,7 @@ MOTION = {
 }
 _ARROWS = {"\x1b[A": "up", "\x1b[B": "down", "\x1b[C": "right", "\x1b[D": "left",
            "\x1bOA": "up", "\x1bOB": "down", "\x1bOC": "right", "\x1bOD": "left"}
+LATE_AFTER = 1.0  # s: a command the robot reads later than this is refused (as the phone page's joystick)
 HELP = "drive: arrows or WASD move, space stops, + / - change speed, q quits"
 
 
@@ -53,6 +55,7 @@ class KeyboardDriver:
 
     def __init__(self, client, linear=0.2, angular=0.8, rate=5.0, release=0.7):
         self.client = client
+        self.clock = RobotClock(client)  # each command is refused by the robot if it arrives late
         self.linear, self.angular = linear, angular
         self.period = 1.0 / rate
         self.release = release
@@ -67,6 +70,7 @@ class KeyboardDriver:
                               "(for scripts use 'robotctl teleop LIN ANG').", ExitStatus.USAGE)
         fd = stdin.fileno()
         self._out = stdout
+        self.clock.sync()
         try:
             with _cbreak(fd), _signals_raise_hangup():
                 self._show(HELP + "\r\n")  # once keys are read one by one: typing may start now
@@ -136,7 +140,13 @@ class KeyboardDriver:
     def _send(self, now):
         self._last_send = now
         linear, angular = self.command
-        self.client.post("/teleop", {"linear": linear, "angular": angular})
+        body = dict({"linear": linear, "angular": angular}, **self.clock.deadline(LATE_AFTER))
+        try:
+            self.client.post("/teleop", body)
+        except ClientError as exc:
+            if (getattr(exc, "body", None) or {}).get("error") != "command_late":
+                raise
+            self._show("\r\033[Klate: the link to the robot stalled, so it dropped that command\r\n")
 
     def _stop_robot(self):
         self.command = (0.0, 0.0)
