@@ -3,7 +3,9 @@
 The simulation's navigation mode serves the map the robot navigates on with it:
 the simulated world's own map, or a map saved while mapping. Closing it takes
 the topics away, as stopping map_server does (idle and mapping modes publish
-no known map: a late subscriber then hears nothing).
+no known map: a late subscriber then hears nothing). The topics are published
+with ``ros/own_topics.py``: the server's own map reader, in this process, hears
+each new map server even when it was still busy with the last one's map.
 """
 
 import logging
@@ -12,7 +14,7 @@ import threading
 import rospy
 from nav_msgs.msg import MapMetaData, OccupancyGrid
 
-from flask_move_server.ros import convert
+from flask_move_server.ros import convert, own_topics
 
 log = logging.getLogger(__name__)
 
@@ -34,8 +36,8 @@ class MapServerStandIn:
         with self._lock:
             if self._closed:
                 return
-            self._pubs = (rospy.Publisher(self.topic, OccupancyGrid, queue_size=1, latch=True),
-                          rospy.Publisher(self.topic + "_metadata", MapMetaData, queue_size=1, latch=True))
+            self._pubs = (own_topics.publisher(self.topic, OccupancyGrid, queue_size=1, latch=True),
+                          own_topics.publisher(self.topic + "_metadata", MapMetaData, queue_size=1, latch=True))
             self._pubs[0].publish(msg)
             self._pubs[1].publish(msg.info)
         log.info("map server stand-in: %s (%d x %d cells) on %s", self.grid.source, self.grid.width,

@@ -11,6 +11,9 @@ rest costs nothing), and publishes the grid latched on ``/map`` (and its
 ``/odom`` message it publishes tf ``map → odom`` = true pose ∘ odometry⁻¹ at
 that stamp: the correction gmapping's scan matching would find, exactly.
 
+``/map`` follows the map server stand-in's (``sim/map_server.py``) on the same
+topic, so it is published with ``ros/own_topics.py`` as that one is.
+
 ``modes/simulated.py`` runs this in mapping mode, in place of the world's AMCL
 stand-in, which publishes the same tf and is quiet meanwhile (``SimWorld.localizing``).
 """
@@ -24,7 +27,7 @@ import tf2_ros
 from nav_msgs.msg import MapMetaData, OccupancyGrid, Odometry
 
 from flask_move_server.geometry import compose, inverse, normalize_angle
-from flask_move_server.ros import convert
+from flask_move_server.ros import convert, own_topics
 from flask_move_server.ros.convert import pose_from_msg, transform_message
 
 log = logging.getLogger(__name__)
@@ -55,8 +58,8 @@ class SimMapping:
             return
         map_topic, odom_topic = self._topics
         self._pubs = {
-            "map": rospy.Publisher(map_topic, OccupancyGrid, queue_size=1, latch=True),
-            "metadata": rospy.Publisher(map_topic + "_metadata", MapMetaData, queue_size=1, latch=True),
+            "map": own_topics.publisher(map_topic, OccupancyGrid, queue_size=1, latch=True),
+            "metadata": own_topics.publisher(map_topic + "_metadata", MapMetaData, queue_size=1, latch=True),
             "tf": tf2_ros.TransformBroadcaster(),
         }
         self._odom_sub = rospy.Subscriber(odom_topic, Odometry, self._on_odom, queue_size=5)
