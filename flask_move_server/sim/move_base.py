@@ -40,6 +40,7 @@ from move_base_msgs.msg import MoveBaseAction, MoveBaseActionGoal, MoveBaseFeedb
 from nav_msgs.msg import Odometry, Path
 
 from flask_move_server.errors import PlanningFailed
+from flask_move_server.ros import own_topics
 from flask_move_server.ros.convert import path_message, pose_from_msg, pose_stamped, twist
 from flask_move_server.sim import dwa
 from flask_move_server.sim.follower import DONE, FollowerLimits, PathFollower
@@ -285,6 +286,8 @@ class _Endpoint:
 
     def __init__(self, action, execute):
         self.withdrawn = threading.Event()
+        for topic in ("status", "result", "feedback"):  # the server's navigator hears this life, not the last
+            own_topics.forget_own_connections(rospy.resolve_name(action + "/" + topic))
         self.server = actionlib.SimpleActionServer(action, MoveBaseAction, execute_cb=lambda goal: execute(self, goal),
                                                    auto_start=False)
         self.server.start()
