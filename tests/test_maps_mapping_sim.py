@@ -116,7 +116,7 @@ def test_marks_while_mapping_go_with_the_map_made_and_the_configured_map_is_chos
 def test_no_map_may_be_saved_under_the_configured_maps_name(sim):
     switch(sim, {"mode": "mapping"})
     r = sim.post("/maps", {"name": "Demo"}, timeout=30)
-    assert r.status_code == 409 and r.json()["error"] == "map_exists" and "configured" in r.json()["message"]
+    assert r.status_code == 409 and r.json()["error"] == "map_exists" and "robot's own map" in r.json()["message"]
     assert not (sim.folder / "maps" / "Demo.yaml").exists()
     switch(sim, {"mode": "navigation", "map": "demo"})
 

@@ -331,15 +331,15 @@ def test_marking_places_renaming_and_deleting_them(sim, page, browser):
 
     page.answers.extend(["hall spot", False])  # renaming onto another waypoint's name: "Replace?" no
     page.locator('#places li[data-name="window"] button', has_text="Rename").tap()
-    wait_for(lambda: page.wait_for_timeout(20) or "Replace the waypoint hall spot?" in page.asked, timeout=5,
+    wait_for(lambda: page.wait_for_timeout(20) or "Replace the place hall spot?" in page.asked, timeout=5,
              message="the replace confirmation")
     assert sim.waypoint("hall spot") == [x, y, yaw] and sim.get("/waypoints/window").status_code == 200
 
-    page.answers.append(False)  # "Delete the waypoint?" answered no: nothing happens
+    page.answers.append(False)  # "Delete the place?" answered no: nothing happens
     asked = len(page.asked)
     page.locator('#places li[data-name="window"] button', has_text="Delete").tap()
     wait_for(lambda: page.wait_for_timeout(20) or len(page.asked) > asked, message="the delete confirmation")
-    assert "Delete the waypoint window?" in page.asked[-1]
+    assert "Delete the place window?" in page.asked[-1]
     assert sim.get("/waypoints/window").status_code == 200
     page.answers.append(True)
     page.locator('#places li[data-name="window"] button', has_text="Delete").tap()

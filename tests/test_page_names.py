@@ -102,11 +102,11 @@ def test_marking_a_name_typed_differently_but_the_same_asks_before_replacing(sim
     page.locator("#tabs button[data-tab=places]").tap()
     page.wait_for_selector('#places li[data-name="Küche"]')
     before = sim.waypoints.read_bytes()
-    page.answers.append(False)  # "Replace the waypoint Küche?" no
+    page.answers.append(False)  # "Replace the place Küche?" no
     page.fill("#newname", NFD_KUCHE)
     page.locator("#mark-form button").tap()
     wait_for(lambda: page.wait_for_timeout(20) or page.asked, timeout=5, message="the replace question")
-    assert page.asked == ["Replace the waypoint Küche?"]
+    assert page.asked == ["Replace the place Küche?"]
     assert sim.waypoints.read_bytes() == before
     page.close()
 

@@ -71,6 +71,24 @@ def test_an_arrival_is_not_told_on_the_next_map(server, page):
     assert sim.post("/mode", {"mode": "navigation", "map": "demo", "wait": 60}, timeout=70).status_code == 200
 
 
+def test_a_goal_a_switch_gave_up_is_said_without_api_words_and_the_map_stays_put(server, page):
+    """The new owner's walk: "…Send it again once GET /mode says running." on a line that grew to four
+    and dropped the map by 55 px under a finger aiming at it."""
+    sim = server["sim"]
+    at_rest(sim)
+    top = page.locator("#map").bounding_box()["y"]
+    assert sim.post("/goto", {"name": "kitchen"}).status_code == 202
+    page.wait_for_function("document.getElementById('nav').dataset.state === 'active'", timeout=10000)
+    assert page.locator("#map").bounding_box()["y"] == top, "Cancel showing moves nothing"
+    assert sim.post("/mode", {"mode": "mapping", "wait": 60}, timeout=70).status_code == 200
+    page.wait_for_function("document.getElementById('nav').dataset.state === 'aborted'", timeout=10000)
+    said = nav_text(page)
+    assert said.startswith("failed: The robot switched to mapping") and not any(w in said for w in API_WORDS), said
+    assert page.locator("#map").bounding_box()["y"] == top, "a long reason does not push the map down"
+    screenshot(page, "phone-goal-given-up")
+    assert sim.post("/mode", {"mode": "navigation", "map": "demo", "wait": 60}, timeout=70).status_code == 200
+
+
 def test_a_goal_while_idle_is_refused_in_words_for_the_page(server, page):
     sim = server["sim"]
     assert sim.post("/mode", {"mode": "idle", "wait": 60}, timeout=70).status_code == 200

@@ -240,8 +240,8 @@ class MapService:
         """A saved map may not take the configured map's name: it would hide that map from the list."""
         own = self._own_map()
         if own is not None and own.answers_to(name):
-            raise MapExists("{!r} is the name of the map the robot's stack was configured with; pick another "
-                            "name.".format(own.name))
+            raise MapExists("{!r} is the name of the robot's own map (the one its navigation was set up with); "
+                            "pick another name.".format(own.name))
 
     # saving --------------------------------------------------------------------------------
 

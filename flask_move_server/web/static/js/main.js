@@ -7,6 +7,7 @@ import {initPanels, showMode, loadMaps} from "./panels.js";
 import {initHealth} from "./health.js";
 import {clearError, initNotices, notify, report} from "./notice.js";
 import {StopSender} from "./stop.js";
+import {withoutApi} from "./words.js";
 import {initPlaces, loadWaypoints, markPlace} from "./places.js";
 import {initOverlays} from "./overlays.js";
 import {initDriveSpeed} from "./drivespeed.js";
@@ -55,10 +56,11 @@ function showNavigation(nav) {
     text = "going to " + where;  // short enough for most names on a phone; a longer one is cut, never the distance
     if (nav.distance_remaining != null) distance = nav.distance_remaining.toFixed(1) + " m";
   } else if (state === "succeeded") text = "arrived at " + where;
-  else if (state === "aborted" || state === "rejected") text = "failed: " + (nav.message || "move_base gave up on " + where);
+  else if (state === "aborted" || state === "rejected") text = "failed: " + (nav.message ? withoutApi(nav.message) : "no way to " + where);
   else if (state === "canceled") text = "cancelled";
-  else if (state === "idle" && nav.message) text = nav.message;
+  else if (state === "idle" && nav.message) text = withoutApi(nav.message);
   $("nav-text").textContent = text;
+  $("nav-text").title = text;  // cut to two lines on a phone: a tap shows it whole
   $("nav-distance").textContent = distance;
   box.dataset.state = state;
   box.dataset.target = nav.target || "";
@@ -162,7 +164,7 @@ export function setGesture(mode) {
 function showStaleNote() {
   const note = !isLive() ? "robot not connected: its last known position" :
     noMapInUse() ? (map.robot ? "no map in use: the robot's last known position" : "no map in use") :
-    !map.robot ? "position unknown" : map.robotStale() ? "position is old (localisation or ROS stalled)" : "";
+    !map.robot ? "position unknown" : map.robotStale() ? "position is old: localisation is not updating it (see Health)" : "";
   $("stale-note").textContent = note;
 }
 
@@ -235,9 +237,9 @@ function sendTeleop(command) {
   const sent = teleopInFlight = call("POST", "/teleop", Object.assign({}, command, within(TELEOP_WINDOW_S)), "teleop");
   sent.catch(() => {}).then(() => { if (teleopInFlight === sent) teleopInFlight = null; });
 }
-function stopDriving() {
-  const first = stopping.send();
-  if (teleopInFlight) teleopInFlight.catch(() => {}).then(() => first.then(() => stopping.send()));
+function stopDriving() {  // the stick let go: the stop is said only if it does not get through at once
+  const first = stopping.send(true);
+  if (teleopInFlight) teleopInFlight.catch(() => {}).then(() => first.then(() => stopping.send(true)));
 }
 const joystick = new Joystick($("pad"), $("knob"), {send: sendTeleop, stop: stopDriving});
 const keys = new KeyDrive({send: sendTeleop, stop: stopDriving, enabled: () => isLive() && !latched()});
@@ -259,7 +261,8 @@ for (const tab of document.querySelectorAll("#tabs button")) {
     }
   };
 }
-$("mode").onclick = () => flashHint($("mode").title || "");  // a phone has no hover: tap the mode for its message
+$("mode").onclick = () => flashHint($("mode").title || "");
+$("nav-text").onclick = () => flashHint($("nav-text").title || "");  // the goal line whole, when cut short  // a phone has no hover: tap the mode for its message
 $("token").onclick = () => askTokenAgain().then(() => resync());
 initPanels({call, report, setGesture, isLive});
 initPlaces({call, sendGoal, isLive, map, buzz});

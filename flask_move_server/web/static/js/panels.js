@@ -4,6 +4,7 @@
 // it can be used again, not renamed nor deleted; /mode calls it map null.
 import {api, authorisedFetch} from "./api.js";
 import {withoutApi} from "./words.js";
+import {notify} from "./notice.js";
 
 const $ = (id) => document.getElementById(id);
 let ctx = null;
@@ -137,6 +138,7 @@ async function renameMap(name) {
     ctx.report(RENAME_WORDS[e.code] ? new Error(RENAME_WORDS[e.code](name, to)) : e, "rename");
     return;
   }
+  notify("Renamed the map " + name + " to " + to);
   quietly(loadMaps());
 }
 
@@ -148,7 +150,7 @@ const RENAME_WORDS = {
 };
 
 async function deleteMap(name) {
-  if (!window.confirm("Delete the map " + name + " and its waypoints?")) return;
+  if (!window.confirm("Delete the map " + name + " and its places?")) return;
   await quietly(ctx.call("DELETE", "/maps/" + encodeURIComponent(name)));
   quietly(loadMaps());
 }

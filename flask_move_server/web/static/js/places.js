@@ -67,7 +67,7 @@ export const goTo = (name) => { ctx.buzz(); return quietly(ctx.sendGoal({name}))
 
 /** A new waypoint under a name in use replaces that one: ask first (destructive). */
 function mayReplace(name) {
-  return !ctx.map.waypoints.some((w) => w.name === name) || window.confirm("Replace the waypoint " + name + "?");
+  return !ctx.map.waypoints.some((w) => w.name === name) || window.confirm("Replace the place " + name + "?");
 }
 
 const placePath = (name) => "/waypoints/" + encodeURIComponent(name);
@@ -77,14 +77,14 @@ async function renamePlace(w) {
   const name = typedName(window.prompt("New name for " + w.name + ":", w.name));
   if (!name || name === w.name) return;
   const overwrite = ctx.map.waypoints.some((p) => p.name === name);
-  if (overwrite && !window.confirm("Replace the waypoint " + name + "?")) return;
+  if (overwrite && !window.confirm("Replace the place " + name + "?")) return;
   await quietly(ctx.call("PATCH", placePath(w.name), {name, overwrite})
     .then(() => notify("Renamed " + w.name + " to " + name)));
   quietly(loadWaypoints());
 }
 
 async function deletePlace(name) {
-  if (!window.confirm("Delete the waypoint " + name + "?")) return;
+  if (!window.confirm("Delete the place " + name + "?")) return;
   await quietly(ctx.call("DELETE", placePath(name)).then(() => notify("Deleted " + name)));
   quietly(loadWaypoints());
 }

@@ -17,14 +17,17 @@ export class StopSender {
     this.doneTimer = null;
   }
 
-  /** Send a stop now, and again until acknowledged (or a newer command is sent). */
-  async send() {
+  /** Send a stop now, and again until acknowledged (or a newer command is sent). `quiet`: the
+   *  joystick let go, not the STOP button: say something only if it does not get through. */
+  async send(quiet = false) {
     const mine = ++this.attempt;
-    this.show("sending", "sending…");
+    if (!quiet) this.show("sending", "sending…");
     for (let tries = 0; mine === this.attempt; tries++) {
       try {
         await api("POST", "/stop", undefined, TRY_TIMEOUT_MS);
-        if (mine === this.attempt) this.done();
+        if (mine === this.attempt) {
+          if (!quiet || this.button.dataset.outcome) this.done();  // a quiet stop that had to retry says it landed
+        }
         return true;
       } catch (e) {
         if (mine !== this.attempt) return false;
