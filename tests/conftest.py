@@ -97,6 +97,16 @@ def stop_process(proc, timeout=5):
             proc.wait()
 
 
+@pytest.fixture(scope="module")
+def browser():
+    """One headless chromium for a browser-test module (tests/page_browser.py; Playwright imported only here)."""
+    from tests.page_browser import Browser
+
+    b = Browser()
+    yield b
+    b.close()
+
+
 @pytest.fixture(scope="session")
 def ros_home(tmp_path_factory):
     home = tmp_path_factory.mktemp("ros_home")

@@ -18,7 +18,6 @@ from tests.conftest import wait_for  # noqa: E402
 from tests.page_browser import (  # noqa: E402
     DESKTOP,
     PHONE,
-    Browser,
     Finger,
     PageSim,
     RequestLog,
@@ -38,13 +37,6 @@ def sim(tmp_path_factory):
     server = PageSim(tmp_path_factory.mktemp("page_sim"))
     yield server
     server.close()
-
-
-@pytest.fixture(scope="module")
-def browser():
-    b = Browser()
-    yield b
-    b.close()
 
 
 @pytest.fixture

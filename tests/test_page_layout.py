@@ -19,7 +19,6 @@ from tests.conftest import wait_for  # noqa: E402
 from tests.page_browser import (  # noqa: E402
     DESKTOP,
     PHONE,
-    Browser,
     Finger,
     PageSim,
     RequestLog,
@@ -39,13 +38,6 @@ def sim(tmp_path_factory):
     server = PageSim(tmp_path_factory.mktemp("page_layout"))
     yield server
     server.close()
-
-
-@pytest.fixture(scope="module")
-def browser():
-    b = Browser()
-    yield b
-    b.close()
 
 
 def open_page(sim, browser, device=PHONE):

@@ -11,7 +11,7 @@ import pytest
 pytest.importorskip("playwright", reason="playwright is not installed (pip install -e '.[test]'; Debian lacks it)")
 
 from tests.conftest import wait_for  # noqa: E402
-from tests.page_browser import Browser, PageSim, RequestLog, live, screenshot  # noqa: E402
+from tests.page_browser import PageSim, RequestLog, live, screenshot  # noqa: E402
 
 TOKEN = "page-token-5ee2"
 
@@ -21,13 +21,6 @@ def server(tmp_path_factory):
     holder = {"sim": PageSim(tmp_path_factory.mktemp("page_token"), token=TOKEN)}
     yield holder
     holder["sim"].close()
-
-
-@pytest.fixture(scope="module")
-def browser():
-    b = Browser()
-    yield b
-    b.close()
 
 
 @pytest.fixture(scope="module")

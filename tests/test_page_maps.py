@@ -12,7 +12,7 @@ import yaml
 pytest.importorskip("playwright", reason="playwright is not installed (pip install -e '.[test]'; Debian lacks it)")
 
 from tests.conftest import wait_for  # noqa: E402
-from tests.page_browser import DESKTOP, Browser, PageSim, RequestLog, live, screenshot  # noqa: E402
+from tests.page_browser import DESKTOP, PageSim, RequestLog, live, screenshot  # noqa: E402
 
 SWITCH = 60  # s
 MODE_JS = "(m) => {const c = document.getElementById('mode'); return c.dataset.mode === m[0] && " \
@@ -26,13 +26,6 @@ def sim(tmp_path_factory):
     server = PageSim(tmp_path_factory.mktemp("page_maps"))
     yield server
     server.close()
-
-
-@pytest.fixture(scope="module")
-def browser():
-    browser = Browser()
-    yield browser
-    browser.close()
 
 
 @pytest.fixture

@@ -15,7 +15,7 @@ import requests
 pytest.importorskip("playwright", reason="playwright is not installed (pip install -e '.[test]'; Debian lacks it)")
 
 from tests.conftest import wait_for  # noqa: E402
-from tests.page_browser import DESKTOP, PHONE, Browser, Finger, PageSim, live, screenshot  # noqa: E402
+from tests.page_browser import DESKTOP, PHONE, Finger, PageSim, live, screenshot  # noqa: E402
 from tests.test_page import Screen, at_rest, on_page  # noqa: E402
 
 NFD_KUCHE = unicodedata.normalize("NFD", "Küche")
@@ -36,13 +36,6 @@ def sim(tmp_path_factory):
     server = PageSim(tmp_path_factory.mktemp("page_names"))
     yield server
     server.close()
-
-
-@pytest.fixture(scope="module")
-def browser():
-    b = Browser()
-    yield b
-    b.close()
 
 
 def open_page(sim, browser, device=PHONE):

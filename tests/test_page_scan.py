@@ -12,7 +12,7 @@ pytest.importorskip("playwright", reason="playwright is not installed (pip insta
 
 from flask_move_server.ros.scan import RATE  # noqa: E402
 from tests.conftest import wait_for  # noqa: E402
-from tests.page_browser import DESKTOP, PHONE, Browser, Finger, PageSim, RequestLog, centre, live, screenshot  # noqa: E402
+from tests.page_browser import DESKTOP, PHONE, Finger, PageSim, RequestLog, centre, live, screenshot  # noqa: E402
 
 LANDSCAPE = dict(PHONE, viewport={"width": 844, "height": 390})
 
@@ -22,13 +22,6 @@ def sim(tmp_path_factory):
     server = PageSim(tmp_path_factory.mktemp("page_scan"))
     yield server
     server.close()
-
-
-@pytest.fixture(scope="module")
-def browser():
-    browser = Browser()
-    yield browser
-    browser.close()
 
 
 @pytest.fixture

@@ -15,7 +15,7 @@ import pytest
 pytest.importorskip("playwright", reason="playwright is not installed (pip install -e '.[test]'; Debian lacks it)")
 
 from tests.conftest import wait_for  # noqa: E402
-from tests.page_browser import Browser, Finger, PageSim, RequestLog, live, screenshot  # noqa: E402
+from tests.page_browser import Finger, PageSim, RequestLog, live, screenshot  # noqa: E402
 from tests.test_page import Screen, at_rest, on_page  # noqa: E402
 
 GOAL = (1.0, 1.0)  # free floor in the demo flat's hall, away from where the robot stands
@@ -27,13 +27,6 @@ def sim(tmp_path_factory):
     yield server
     os.kill(server.proc.pid, signal.SIGCONT)  # never leave it frozen, whatever failed
     server.close()
-
-
-@pytest.fixture(scope="module")
-def browser():
-    b = Browser()
-    yield b
-    b.close()
 
 
 def _connection(page):

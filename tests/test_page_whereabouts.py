@@ -14,7 +14,7 @@ import pytest
 pytest.importorskip("playwright", reason="playwright is not installed (pip install -e '.[test]'; Debian lacks it)")
 
 from tests.conftest import ROOT, wait_for  # noqa: E402
-from tests.page_browser import DEMO_WAYPOINTS, DESKTOP, PHONE, Browser, Finger, PageSim, live, screenshot  # noqa: E402
+from tests.page_browser import DEMO_WAYPOINTS, DESKTOP, PHONE, Finger, PageSim, live, screenshot  # noqa: E402
 
 LANDSCAPE = dict(PHONE, viewport={"width": 844, "height": 390})
 BANNER_SHOWN = "!document.getElementById('whereabouts').hidden"
@@ -32,13 +32,6 @@ def sim(tmp_path_factory):
     server = PageSim(folder)
     yield server
     server.close()
-
-
-@pytest.fixture(scope="module")
-def browser():
-    b = Browser()
-    yield b
-    b.close()
 
 
 def open_page(browser, sim, device=None):

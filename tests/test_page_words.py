@@ -11,7 +11,7 @@ import pytest
 pytest.importorskip("playwright", reason="playwright is not installed (pip install -e '.[test]'; Debian lacks it)")
 
 from tests.conftest import wait_for  # noqa: E402
-from tests.page_browser import Browser, Finger, PageSim, centre, live, screenshot  # noqa: E402
+from tests.page_browser import Finger, PageSim, centre, live, screenshot  # noqa: E402
 from tests.test_page import at_rest  # noqa: E402
 
 API_WORDS = ("POST ", "GET /", "PUT /", "robotctl", "curl")
@@ -22,13 +22,6 @@ def server(tmp_path_factory):
     holder = {"sim": PageSim(tmp_path_factory.mktemp("page_words"))}
     yield holder
     holder["sim"].close()
-
-
-@pytest.fixture(scope="module")
-def browser():
-    b = Browser()
-    yield b
-    b.close()
 
 
 @pytest.fixture(scope="module")
