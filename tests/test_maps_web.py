@@ -455,7 +455,7 @@ def test_the_configured_map_is_listed_first_and_its_name_cannot_be_taken(with_de
     assert listed["active"] is None  # mapping
     for name in ("demo", "DEMO"):
         r = client.post("/maps", json={"name": name})
-        assert error_of(r) == (409, "map_exists") and "configured" in r.get_json()["message"]
+        assert error_of(r) == (409, "map_exists") and "robot's own map" in r.get_json()["message"]
         assert error_of(client.patch("/maps/garage", json={"name": name})) == (409, "map_exists")
     assert error_of(client.delete("/maps/demo")) == (409, "map_configured")
     assert files_in(catalogue.folder) == ["garage.pgm", "garage.yaml"]
