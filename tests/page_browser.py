@@ -4,7 +4,9 @@ No browser is downloaded (``playwright install`` is never run): Playwright's dri
 pip package and drives ``/usr/bin/chromium``, with the flags that keep it from reaching for the
 network this machine does not have. A page is opened as a phone would (390×844, touch, mobile).
 
-Import this only after ``pytest.importorskip("playwright")``: ``make test-debian`` has no Playwright.
+``PageSim`` needs no browser (server-side tests use it, ``make test-debian`` too, which has no
+Playwright); ``Browser`` imports Playwright when one is opened: browser-test modules
+``pytest.importorskip("playwright")`` first.
 """
 
 import math
@@ -12,7 +14,6 @@ import os
 import shutil
 
 import requests
-from playwright.sync_api import sync_playwright
 
 from tests.conftest import ROOT, ServerProcess, SimReads, free_port, stop_process, wait_for
 
@@ -71,6 +72,8 @@ class Browser:
         if not os.path.exists(CHROMIUM):
             raise AssertionError("no {}: the browser tests drive Debian's chromium (make setup installs it: "
                                  "apt-get install chromium)".format(CHROMIUM))
+        from playwright.sync_api import sync_playwright
+
         self._playwright = sync_playwright().start()
         self.browser = self._playwright.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS, headless=True)
         self.contexts = []
