@@ -20,6 +20,7 @@ import time
 import pytest
 import requests
 
+from flask_move_server.sim import dwa
 from tests.conftest import ROOT, ServerProcess, SimReads, free_port, stop_process, wait_for
 
 SPEED_FACTOR = 4.0
@@ -52,7 +53,11 @@ def sim(tmp_path_factory):
     stop_process(server.proc)
 
 
-def _close_to(pose, x, y, yaw, xy_tol=0.1, yaw_tol=0.2):
+# Arrival as the robot's own DWA judges it: the shipped xy_goal_tolerance and yaw_goal_tolerance.
+ARRIVAL = dwa.load(os.path.join(ROOT, "config"))
+
+
+def _close_to(pose, x, y, yaw, xy_tol=ARRIVAL.xy_goal_tolerance, yaw_tol=ARRIVAL.yaw_goal_tolerance):
     yaw_error = abs(math.atan2(math.sin(pose["yaw"] - yaw), math.cos(pose["yaw"] - yaw)))
     return math.hypot(pose["x"] - x, pose["y"] - y) <= xy_tol and yaw_error <= yaw_tol
 

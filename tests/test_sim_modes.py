@@ -22,7 +22,7 @@ from flask_move_server.errors import BadRequest, StackFailed
 from flask_move_server.geometry import Pose2D
 from flask_move_server.maps import mapfile
 from flask_move_server.ros.convert import write_pose
-from flask_move_server.sim import occupancy
+from flask_move_server.sim import dwa, occupancy
 from flask_move_server.sim.runner import Simulation
 from flask_move_server.waypoints.store import WaypointStore
 from flask_move_server.web import create_app
@@ -159,7 +159,7 @@ def test_map_the_flat_from_nothing_save_it_and_navigate_on_it(parts, tmp_path):
     served = wait_for(lambda: latest(parts.config.sim.map_topic, OccupancyGrid), message="the saved map on /map")
     assert (served.info.width, served.info.height) == (slam.width, slam.height)
     assert parts.goto(6.2, 4.5, math.pi / 2) == "succeeded"
-    assert parts.pose().distance_to(Pose2D(6.2, 4.5, 0.0)) <= 0.1
+    assert parts.pose().distance_to(Pose2D(6.2, 4.5, 0.0)) <= dwa.load(os.path.join(ROOT, "config")).xy_goal_tolerance
     assert parts.goto(4.6, -1.5) == "aborted"  # the store room was never seen: unknown
 
 
