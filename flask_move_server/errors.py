@@ -89,6 +89,42 @@ class WaypointExists(MoveServerError, FileExistsError):
     code = "waypoint_exists"
 
 
+class WaypointInUse(MoveServerError, RuntimeError):
+    """A waypoint a route goes through cannot be deleted: the routes would lose a stop."""
+
+    code = "waypoint_in_use"
+
+
+class BadRoute(BadRequest):
+    """A route's fields are not valid (its waypoints, loops, dwell, failure policy or schedule)."""
+
+    code = "bad_route"
+
+
+class UnknownRoute(MoveServerError, KeyError):
+    """No route of the active map has the requested name."""
+
+    code = "unknown_route"
+
+    def __str__(self):
+        return self.args[0]
+
+
+class UnknownRun(MoveServerError, KeyError):
+    """No run kept has the requested id."""
+
+    code = "unknown_run"
+
+    def __str__(self):
+        return self.args[0]
+
+
+class RunConflict(MoveServerError, RuntimeError):
+    """The run cannot do that now: another run is active, or its state does not allow it."""
+
+    code = "run_conflict"
+
+
 class WaypointFileError(MoveServerError, OSError):
     """The waypoints file cannot be read, parsed or written."""
 

@@ -1,0 +1,61 @@
+"""A route's timetable: ``"HH:MM"`` every day, or ``"mon,wed HH:MM"`` / ``"mon-fri HH:MM"``.
+
+Times are the robot's local time (its time zone, as ``date`` shows it). :func:`parse` checks one
+entry and gives its :class:`Slot`, written back in one canonical form (``"Mon-Fri 09:00"`` reads
+as ``"mon-fri 09:00"``), so the file and the API say the same thing. Pure: no threads, no clock.
+"""
+
+import re
+from dataclasses import dataclass
+
+from flask_move_server.errors import BadRoute, shown
+
+DAYS = ("mon", "tue", "wed", "thu", "fri", "sat", "sun")  # datetime.weekday() order
+_ENTRY = re.compile(r"(?:(?P<days>[a-z,\-]+)\s+)?(?P<hour>\d{1,2}):(?P<minute>\d{2})")
+MAX_TEXT = 64
+EXAMPLES = "\"21:30\" (every day), \"mon-fri 09:00\" or \"sat,sun 10:15\" (24-hour clock, the robot's local time)"
+
+
+@dataclass(frozen=True)
+class Slot:
+    """One entry: the weekdays (0 = Monday) and the minute of the day it starts a run."""
+
+    days: frozenset
+    hour: int
+    minute: int
+    text: str  # the canonical form, as kept and shown
+
+    def matches(self, moment):
+        """True when ``moment`` (a local datetime) is in this slot's minute on one of its days."""
+        return moment.weekday() in self.days and (moment.hour, moment.minute) == (self.hour, self.minute)
+
+
+def parse(entry):
+    """The :class:`Slot` of one timetable entry; BadRoute saying what is wrong and what a time looks like."""
+    if not isinstance(entry, str) or len(entry) > MAX_TEXT:
+        raise BadRoute("Field 'schedule': each entry is a time as text, like {}; got {}.".format(
+            EXAMPLES, shown(entry)))
+    match = _ENTRY.fullmatch(entry.strip().lower())
+    if match is None:
+        raise BadRoute("Field 'schedule': {} is not a time; write {}.".format(shown(entry), EXAMPLES))
+    hour, minute = int(match["hour"]), int(match["minute"])
+    if hour > 23 or minute > 59:
+        raise BadRoute("Field 'schedule': {} is not a time of day (00:00 to 23:59).".format(shown(entry)))
+    days, days_text = _days(match["days"], entry)
+    text = "{:02d}:{:02d}".format(hour, minute)
+    return Slot(days, hour, minute, "{} {}".format(days_text, text) if days_text else text)
+
+
+def _days(spec, entry):
+    """(weekday numbers, canonical text) of ``mon,wed`` / ``mon-fri`` / ``sat,mon-wed``; all days for None."""
+    if spec is None:
+        return frozenset(range(7)), ""
+    days = set()
+    for part in spec.split(","):
+        first, _, last = part.partition("-")
+        if first not in DAYS or (last and last not in DAYS):
+            raise BadRoute("Field 'schedule': {} names a day it does not know; days are {} (\"mon-fri\", "
+                           "\"sat,sun\").".format(shown(entry), ", ".join(DAYS)))
+        a, b = DAYS.index(first), DAYS.index(last or first)
+        days.update(range(a, b + 1) if a <= b else list(range(a, 7)) + list(range(0, b + 1)))
+    return frozenset(days), spec
