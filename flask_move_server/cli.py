@@ -43,6 +43,7 @@ class Server:
         self.http = None
         self.robot = None
         self.modes = None
+        self.runs = None
         self._simulation = None
         self.events = None
         self._stack = contextlib.ExitStack()
@@ -61,8 +62,9 @@ class Server:
         self._report(stack, robot)
         self.modes = self._build_modes(stack)
         maps = self._build_maps(stack, store)
+        runs = self._build_runs(stack, robot, store)
         app = create_app(self.config, robot, store, token=self.config.resolved_token(), events=self.events,
-                         modes=self.modes, maps=maps, doctor=self._build_doctor(robot))
+                         modes=self.modes, maps=maps, doctor=self._build_doctor(robot), runs=runs)
         self.http = HttpServer(app, self.config.server)
         stack.callback(self.http.close)
         stack.callback(robot.stop)
@@ -91,6 +93,19 @@ class Server:
                                margin=cfg.maps.image_margin, save_timeout=cfg.maps.save_timeout,
                                configured=configured.of_config(cfg))
         return self.maps
+
+    def _build_runs(self, stack, robot, store):
+        """The one executor of runs (routes from the API, the page, schedules), its history in ``runs.json``
+        of the state folder; closed before the robot, leaving a run under way ``interrupted``."""
+        from flask_move_server.missions.executor import RunExecutor
+        from flask_move_server.missions.history import RunHistory, default_path
+
+        history = RunHistory(default_path(self.config.state_folder()))
+        runs = RunExecutor(robot, store, history, events=self.events, modes=self.modes)
+        stack.callback(runs.close)
+        robot.runs = runs
+        self.runs = runs
+        return runs
 
     def _build_doctor(self, robot):
         """The first-boot doctor: ROS as the server's node sees it, and this machine."""

@@ -8,9 +8,13 @@ e-stop latch stops everything and refuses goals and teleop until released).
 """
 
 from flask_move_server.drive.estop import EStop
-from flask_move_server.errors import NavigationFailed, ShuttingDown
+from flask_move_server.errors import NavigationFailed, NavigationUnavailable, ShuttingDown
 
 _SHUTTING_DOWN = "The server is shutting down: the robot was stopped. Send the command again once it is back."
+STOPPED = "Stopped (POST /stop)."
+ESTOP = "The e-stop was engaged ({})."
+ESTOP_SOURCES = {"api": "POST /estop", "button": "its button"}
+SHUT_DOWN = "The server stopped while this run was under way; resume it to go on."
 
 
 class Robot:
@@ -25,18 +29,35 @@ class Robot:
         self.estop = estop if estop is not None else EStop()
         # A zero Twist is ramped down by the base; a deadman that runs out must stop at once.
         teleop.on_expire(drive.stop)
-        self.estop.when_engaged(lambda source: self.stop())
+        self.estop.when_engaged(lambda source: self.stop(ESTOP.format(ESTOP_SOURCES.get(source, source))))
         self.shutting_down = False
+        self.runs = None  # missions/executor.py: the run under way, ended by any other command
         self.goal_gate = None  # modes/goal_gate.py, when this server runs the navigation stack
         self.ground_truth = None  # with --sim: the simulated robot's true pose (a callable), shown in /status
 
     def goto(self, goal):
-        """Send the robot to ``goal``; returns the goal's sequence number."""
+        """Send the robot to ``goal``; returns the goal's sequence number. Ends a run under way."""
+        return self._send(goal, "A goal to {} (POST /goto) took the robot elsewhere.".format(goal.target or "a pose"))
+
+    def run_goto(self, goal):
+        """A run's goal: as :meth:`goto`, but part of the run (it ends none), and never waiting for move_base."""
+        if not self.navigator.server_ready():
+            self.navigator.check_ros()
+            raise NavigationUnavailable("move_base does not answer, so the run's goal could not be sent.")
+        return self._send(goal, None)
+
+    def goal_end(self, seq, timeout):
+        """``(state, why)`` of goal ``seq`` once it ends or after ``timeout`` s (``active`` then); never raises."""
+        return self.navigator.wait(seq, timeout)
+
+    def _send(self, goal, ends_run):
         self._refuse_motion("goals are")
         ticket = None
         if self.goal_gate is not None:
             self.navigator.check_ros()  # ROS down is the first reason, whatever the mode says
             ticket = self.goal_gate.admit()
+        if ends_run:
+            self._end_run(ends_run)
         self.drive.rearm()  # a deliberate command: motion after an e-stop release starts here
         seq = self.navigator.goto(goal)
         if self.goal_gate is not None:
@@ -63,17 +84,42 @@ class Robot:
         """The goal's state as ``/status`` shows it under ``navigation`` (the pose is not read)."""
         return self.navigator.status()
 
-    def stop(self):
-        """Cancel the goal, end teleop, command zero velocity."""
+    def stop(self, reason=STOPPED):
+        """End the run under way (saying ``reason``), cancel the goal, end teleop, command zero velocity."""
+        self._end_run(reason)
+        return self.halt()
+
+    def halt(self):
+        """Cancel the goal, end teleop, command zero velocity; a run under way is left as it is (its pause)."""
         canceled = self.navigator.cancel()
         self.teleop_control.stop()
         self.drive.stop()
         return canceled
 
+    def _end_run(self, reason):
+        """Someone else commands the robot: the run under way ends ``canceled`` with ``reason``."""
+        if self.runs is not None:
+            self.runs.end_by(reason)
+
+    def busy_with(self):
+        """Why the robot is busy with something a schedule must not cut short (a goal, the joystick), or None."""
+        if self.teleop_control.status()["active"]:
+            return "The robot was being driven by joystick."
+        if self.navigator.active:
+            target = self.navigator.status().get("target")
+            return "The robot was on its way to {}.".format(target or "a goal")
+        return None
+
+    def refuse_motion(self, what):
+        """EStopLatched (or ShuttingDown) when nothing may move now: ``what`` names the refused thing."""
+        self._refuse_motion(what)
+
     def shutdown(self):
         """The server is stopping: stop first, refuse motion, answer every waiting /goto (ShuttingDown)."""
         self.shutting_down = True
         self.navigator.trips = None  # the stop below ends the trip, but a restart must still say it cut one short
+        if self.runs is not None:
+            self.runs.interrupt(SHUT_DOWN)  # not canceled: the run is resumable after the restart
         self.stop()
         self.navigator.release_waiters()
 
@@ -88,6 +134,7 @@ class Robot:
     def teleop(self, linear, angular):
         """Drive at the given velocity for the deadman time; cancels a goal under way."""
         self._refuse_motion("teleop is")
+        self._end_run("Driven by joystick (POST /teleop).")
         self.drive.rearm()  # a deliberate command: motion after an e-stop release starts here
         result = self.teleop_control.command(linear, angular)
         if self.navigator.active:

@@ -6,19 +6,14 @@ stands still afterwards, and the page used to say "tap a place" as if nothing ha
 ends; one found at start means the trip was interrupted, and the navigation status says so
 until the next goal. The robot never drives off by itself after a restart.
 
-Written by a thread of its own (atomically: the waypoints file's plumbing), never in the
-request that sends the goal: an SD card's fsync can take tens of milliseconds, and ``/goto``
-answers in one. Only the newest wish is written; a crash within that moment loses the note,
-never a goal. Pure: no rospy, no Flask.
+Written by a :class:`~flask_move_server.state_writer.StateWriter` (its own thread, atomically),
+never in the request that sends the goal: ``/goto`` answers in a millisecond. Pure: no rospy, no Flask.
 """
 
 import json
 import logging
-import os
-import threading
 
-from flask_move_server.errors import WaypointFileError
-from flask_move_server.waypoints import locked_file
+from flask_move_server.state_writer import StateWriter
 
 log = logging.getLogger(__name__)
 
@@ -31,11 +26,7 @@ class TripRecord:
 
     def __init__(self, path):
         self.path = path
-        self._cond = threading.Condition()
-        self._wish = None  # ("write", text) or ("remove", None): the newest state to put on disk
-        self._closed = False
-        self._thread = threading.Thread(target=self._run, name="trip-record", daemon=True)
-        self._thread.start()
+        self._writer = StateWriter(path, "the trip under way", "trip-record")
 
     def left_over(self):
         """The sentence for a trip a restart interrupted (and the note removed), or None."""
@@ -47,7 +38,7 @@ class TripRecord:
         except (OSError, ValueError) as exc:
             log.warning("ignoring %s: %s", self.path, exc)
             data = None
-        self._want("remove", None)
+        self._writer.remove()
         if not isinstance(data, dict):
             return None
         where = data.get("target")
@@ -57,39 +48,11 @@ class TripRecord:
         return INTERRUPTED.format(where)
 
     def started(self, goal):
-        self._want("write", json.dumps({"target": goal.target, "goal": goal.pose.as_dict()}) + "\n")
+        self._writer.write(json.dumps({"target": goal.target, "goal": goal.pose.as_dict()}) + "\n")
 
     def ended(self):
-        self._want("remove", None)
-
-    def _want(self, what, text):
-        with self._cond:
-            self._wish = (what, text)
-            self._cond.notify()
-
-    def _run(self):
-        while True:
-            with self._cond:
-                while self._wish is None and not self._closed:
-                    self._cond.wait()
-                wish, self._wish = self._wish, None
-            if wish is None:
-                return
-            self._apply(*wish)
-
-    def _apply(self, what, text):
-        try:
-            if what == "write":
-                os.makedirs(os.path.dirname(os.path.abspath(self.path)), exist_ok=True)
-                locked_file.atomic_write(self.path, text)
-            elif os.path.exists(self.path):
-                os.unlink(self.path)
-        except (OSError, WaypointFileError) as exc:
-            log.warning("could not keep the trip under way in %s: %s", self.path, exc)
+        self._writer.remove()
 
     def close(self):
         """Write what is pending, then stop the thread."""
-        with self._cond:
-            self._closed = True
-            self._cond.notify()
-        self._thread.join(5)
+        self._writer.close()

@@ -15,6 +15,7 @@ from flask_move_server.web.diagnostics import diagnostics_api
 from flask_move_server.web.estop import estop
 from flask_move_server.web.events import events_api
 from flask_move_server.web.maps import maps_api
+from flask_move_server.web.missions import missions_api
 from flask_move_server.web.modes import modes as modes_routes
 from flask_move_server.web.openapi import description
 from flask_move_server.web.routes import WaypointNameConverter, api
@@ -63,13 +64,14 @@ class UntypedResponse(Response):
     default_mimetype = None
 
 
-def create_app(config, robot, store, token=None, events=None, modes=None, maps=None, doctor=None):
+def create_app(config, robot, store, token=None, events=None, modes=None, maps=None, doctor=None, runs=None):
     """Build the WSGI app serving ``robot`` and the waypoints in ``store``; ``events``: the server's bus.
 
     ``modes``: the server's ModeManager (None: modes are off, the stack runs outside this server).
     ``maps``: the :class:`~flask_move_server.maps.service.MapService` behind ``/map`` and ``/maps``
     (default: the configured maps folder, no live map, no mode manager).
     ``doctor``: the :class:`~flask_move_server.diagnostics.doctor.Doctor` behind ``/diagnostics``.
+    ``runs``: the :class:`~flask_move_server.missions.executor.RunExecutor` behind ``/runs``.
     """
     events = events if events is not None else EventBus()
     modes = modes if modes is not None else ModeManager(config, None)
@@ -87,13 +89,14 @@ def create_app(config, robot, store, token=None, events=None, modes=None, maps=N
     app.json.mimetype = "application/json; charset=utf-8"
     app.extensions["flask_move_server"] = {
         "config": config, "robot": robot, "store": store, "events": events, "maps": maps, "modes": modes,
-        "doctor": doctor}
+        "doctor": doctor, "runs": runs}
     error_handlers.init_app(app)
     guard.init_app(app, config)  # before auth: it protects robots without a token too
     auth.init_app(app, token)
     app.register_blueprint(api)
     app.register_blueprint(estop)
     app.register_blueprint(maps_api)
+    app.register_blueprint(missions_api)
     app.register_blueprint(events_api)
     app.register_blueprint(description)
     app.register_blueprint(modes_routes)

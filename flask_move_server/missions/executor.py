@@ -1,0 +1,383 @@
+"""The one executor of runs: whoever asks (the API, the page, a schedule, MQTT, VDA 5050), it drives.
+
+A run is sent one waypoint at a time as a move_base goal through the Robot facade, and each
+result is matched to its own goal by the goal's sequence number: a stale or late result (of a
+goal a newer one replaced) never advances a run. Reached: noted as visited, then ``dwell``
+seconds, then the next. Not reached: noted as missed with move_base's reason, then the run
+ends ``failed`` (``on_failure: stop``) or goes on (``skip``). Pause cancels the goal and keeps
+the index; resume sends the current waypoint again; skip notes it as missed and goes on.
+
+Who else commands the robot ends the run (``Robot`` calls :meth:`RunExecutor.end_by`):
+``POST /stop``, the e-stop, a ``/goto`` and ``/teleop`` end it ``canceled`` with the reason.
+A goal is sent under :attr:`_sending`, which ``end_by`` takes too, so a ``/goto`` that ends a
+run is never overtaken by the run's next goal. One thread (``run-executor``) per active run;
+every change is a ``run`` event and is written to the history. Pure: no rospy, no Flask.
+"""
+
+import logging
+import threading
+
+from flask_move_server.errors import (
+    EStopLatched,
+    MoveServerError,
+    RunConflict,
+    UnknownRun,
+    UnknownWaypoint,
+    WrongMode,
+)
+from flask_move_server.geometry import Goal, Pose2D
+from flask_move_server.missions.run import (
+    ACTIVE,
+    CANCELED,
+    FAILED,
+    INTERRUPTED,
+    PAUSED,
+    RUNNING,
+    SKIPPED,
+    SUCCEEDED,
+    Run,
+)
+
+log = logging.getLogger(__name__)
+
+POLL = 0.25  # s between looks at a command while waiting on a goal (the goal's end wakes it at once)
+NOT_NAVIGATING = ("Runs need the robot navigating on a map: it is {}. Choose a map to navigate on first "
+                  "(POST /mode {{\"mode\": \"navigation\", \"map\": NAME}}; robotctl map use NAME).")
+
+
+class RunExecutor:
+    """Starts, drives and keeps runs; ``robot``: the facade, ``store``: the active map's waypoints."""
+
+    def __init__(self, robot, store, history, events=None, modes=None):
+        self._robot = robot
+        self._store = store
+        self._history = history
+        self._events = events
+        self._modes = modes
+        self._lock = threading.Condition()  # the runs' state
+        self._sending = threading.RLock()  # held while a run's goal is sent; end_by waits for it
+        self._run = None  # the active run
+        self._command = None  # "pause", "skip", "cancel" for the worker to act on
+        self._seq = None  # the goal the active run sent last
+        self._worker = None
+        self._closed = False
+        if modes is not None:
+            modes.when_leaving_running(self._leaving_mode)
+
+    # asking ------------------------------------------------------------------
+
+    def start(self, route, trigger="api"):
+        """Start a run of ``route`` (a checked Route); the run as a dict. Refused with the reason when
+        the e-stop is latched, the robot is not navigating, or another run is active."""
+        self._check_waypoints(route.waypoints)
+        mode = self._mode_status()  # before our locks: the mode manager calls us under its own
+        with self._sending, self._lock:
+            self._refuse_start(mode)
+            run = Run.of_route(self._history.next_id, route, trigger)
+            self._history.add(run)
+            self._begin(run)
+            return run.as_dict()
+
+    def scheduled(self, route):
+        """A schedule is due: start a run, or keep a ``skipped`` one saying why the robot was busy."""
+        try:
+            mode = self._mode_status()
+            with self._lock:
+                self._refuse_start(mode)
+            busy = self._robot.busy_with()
+            if busy:
+                raise RunConflict(busy)
+            return self.start(route, "schedule")
+        except MoveServerError as exc:
+            with self._lock:
+                run = Run.of_route(self._history.next_id, route, "schedule")
+                run.end(SKIPPED, "Not run at its scheduled time: {}".format(exc))
+                self._history.add(run)
+                self._changed(run)
+            log.info("run %d of %s skipped: %s", run.id, route.name, exc)
+            return run.as_dict()
+
+    def pause(self, run_id):
+        return self._act(run_id, "pause", (RUNNING,), "paused")
+
+    def skip(self, run_id):
+        return self._act(run_id, "skip", ACTIVE, "skipped")
+
+    def cancel(self, run_id):
+        return self._act(run_id, "cancel", ACTIVE + (INTERRUPTED,), "canceled")
+
+    def resume(self, run_id):
+        """Go on: a paused run sends its current waypoint again; an interrupted one starts a worker anew."""
+        mode = self._mode_status()
+        with self._sending, self._lock:
+            run = self._find(run_id)
+            if run.state == PAUSED:
+                self._robot.refuse_motion("runs are")
+                run.state, run.message, self._command = RUNNING, None, None
+                self._changed(run)
+                self._lock.notify_all()
+                return run.as_dict()
+            if run.state != INTERRUPTED:
+                raise RunConflict("Run {} is {}: only a paused or interrupted run can be resumed.".format(
+                    run_id, run.state))
+            self._refuse_start(mode)
+            run.state, run.message = RUNNING, None
+            self._begin(run)
+            return run.as_dict()
+
+    def end_by(self, reason):
+        """Someone else commands the robot (``reason`` says who): the active run ends ``canceled``.
+        Waits for a goal of the run being sent, so none follows. True when a run was ended."""
+        with self._sending, self._lock:
+            run = self._run
+            if run is None or not run.active:
+                return False
+            self._finish(run, CANCELED, reason)
+            return True
+
+    def interrupt(self, why):
+        """The server is stopping: the active run is ``interrupted`` (resumable after the restart)."""
+        with self._lock:
+            run = self._run
+            if run is not None and run.active:
+                run.state, run.message = INTERRUPTED, why
+                self._changed(run)
+                self._run = None
+                self._lock.notify_all()
+
+    # reading -----------------------------------------------------------------
+
+    def runs(self):
+        """The kept runs, newest first, as dicts."""
+        with self._lock:
+            return [self._shown(r) for r in self._history.all()]
+
+    def get(self, run_id):
+        with self._lock:
+            return self._shown(self._find(run_id))
+
+    def active(self):
+        """The active run as a dict, or None."""
+        with self._lock:
+            return self._shown(self._run) if self._run is not None else None
+
+    def _shown(self, run):
+        distance = None
+        if run is self._run and run.state == RUNNING:
+            nav = self._robot.navigation_status()
+            if nav.get("goal_id") == self._seq:
+                distance = nav.get("distance_remaining")
+        return run.as_dict(distance)
+
+    # the rules ---------------------------------------------------------------
+
+    def _check_waypoints(self, names):
+        """Every waypoint of a route exists on the active map; BadRoute-like 404 naming the unknown."""
+        for name in dict.fromkeys(names):
+            self._store.get(name)  # UnknownWaypoint with close names
+
+    def _mode_status(self):
+        """``GET /mode``'s body when this server runs the stack, else None (the stack is someone else's)."""
+        return self._modes.status() if self._modes is not None and self._modes.runs_stack else None
+
+    def _leaving_mode(self, status):
+        """The mode manager leaves a running stack (under its lock): the run under way ends with the reason."""
+        with self._lock:
+            run = self._run
+            if run is not None and run.active:
+                self._finish(run, CANCELED, "The robot switched to {}, which ended the run.".format(status["mode"]))
+
+    def _refuse_start(self, status):
+        """Lock held: why no run can start now (raised), or nothing; ``status``: the mode's, or None."""
+        if self._closed:
+            raise RunConflict("The server is shutting down: no run starts now.")
+        self._robot.refuse_motion("runs are")
+        if self._run is not None and self._run.active:
+            raise RunConflict("Run {} ({}) is {}: cancel it first (POST /runs/{}/cancel), or wait until it "
+                              "ends.".format(self._run.id, self._run.route or "unnamed", self._run.state,
+                                             self._run.id))
+        if status is not None and (status["mode"] != "navigation" or status["state"] != "running"):
+            doing = status["mode"] if status["state"] == "running" else "{} ({})".format(
+                status["mode"], status["state"])
+            raise WrongMode(NOT_NAVIGATING.format(doing))
+
+    def _find(self, run_id):
+        run = self._history.get(run_id)
+        if run is None:
+            raise UnknownRun("No run {} is kept (the newest 50 are; GET /runs lists them).".format(run_id))
+        return run
+
+    def _act(self, run_id, command, states, done):
+        """Pause, skip or cancel: allowed in ``states``; the goal under way is stopped at once."""
+        with self._lock:
+            run = self._find(run_id)
+            if run.state not in states:
+                raise RunConflict("Run {} is {}: it cannot be {} now.".format(run_id, run.state, done))
+            if run.state != RUNNING:  # paused or interrupted: no goal under way, act here
+                self._act_at_rest(run, command)
+                return self._shown(run)
+            self._command = command
+            self._lock.notify_all()
+        self._robot.halt()  # outside the lock: the worker may be waiting to send under it
+        return self._settled(run)
+
+    def _act_at_rest(self, run, command):
+        """Lock held: skip or cancel a run that is not driving (paused, interrupted)."""
+        if command == "cancel":
+            self._finish(run, CANCELED, "Canceled (POST /runs/{}/cancel).".format(run.id))
+            return
+        run.miss("skipped (POST /runs/{}/skip)".format(run.id))
+        if not run.advance():
+            self._finish(run, SUCCEEDED, _summary(run))
+            return
+        run.message = "Paused before {}: resume goes there.".format(run.target)
+        self._changed(run)
+
+    def _settled(self, run):
+        """The run once the worker has acted on its command (briefly waited for), as a dict."""
+        with self._lock:
+            self._lock.wait_for(lambda: self._command is None or self._run is not run, timeout=2.0)
+            return self._shown(run)
+
+    def _begin(self, run):
+        """Lock held: ``run`` becomes the active run, driven by a worker thread of its own."""
+        self._run, self._command, self._seq = run, None, None
+        self._changed(run)
+        log.info("run %d (%s, %s): started, %d waypoints, %s loop(s)", run.id, run.route or "unnamed", run.trigger,
+                 len(run.waypoints), run.loops or "endless")
+        self._worker = threading.Thread(target=self._drive, args=(run,), name="run-executor", daemon=True)
+        self._worker.start()
+
+    def _finish(self, run, state, message):
+        """Lock held: ``run`` ends in ``state`` saying ``message``."""
+        run.end(state, message)
+        if self._run is run:
+            self._run, self._command = None, None
+        self._changed(run)
+        self._lock.notify_all()
+        log.info("run %d: %s%s", run.id, state, " ({})".format(message) if message else "")
+
+    def _changed(self, run):
+        """Lock held: write the runs soon and tell ``GET /events``."""
+        self._history.changed()
+        if self._events is not None:
+            self._events.publish("run", self._shown(run))
+
+    # the worker --------------------------------------------------------------
+
+    def _drive(self, run):
+        """The worker: one waypoint after the other until the run is through, ended or paused for good."""
+        while True:
+            with self._lock:
+                if not self._await_running(run):
+                    return
+            outcome = self._go(run)
+            if outcome is None:  # the run ended meanwhile, or the goal could not be sent
+                return
+            self._after(run, *outcome)
+
+    def _await_running(self, run):
+        """Lock held: wait while paused; False once the run is no longer this worker's."""
+        while self._run is run and run.state == PAUSED and not self._closed:
+            self._lock.wait()
+        return self._run is run and run.state == RUNNING and not self._closed
+
+    def _go(self, run):
+        """Send the current waypoint and wait for its end: ``(state, why)``; None when the run is over."""
+        try:
+            waypoint = self._store.get(run.target)
+        except UnknownWaypoint as exc:
+            return "missing", str(exc)
+        with self._sending:
+            with self._lock:
+                if self._run is not run or run.state != RUNNING or self._command is not None:
+                    return self._command_only()
+            try:
+                seq = self._robot.run_goto(Goal(Pose2D(waypoint.x, waypoint.y, waypoint.yaw), waypoint.name))
+            except MoveServerError as exc:
+                with self._lock:
+                    if self._run is run:
+                        self._finish(run, CANCELED if isinstance(exc, EStopLatched) else FAILED,
+                                     "The goal to {} was refused: {}".format(run.target, exc))
+                return None
+            self._seq = seq
+        return self._wait_goal(run, seq)
+
+    def _command_only(self):
+        """Lock held: a command came before the goal was sent: act on it as on a canceled goal."""
+        return ("canceled", None) if self._command is not None else None
+
+    def _wait_goal(self, run, seq):
+        while True:
+            state, why = self._robot.goal_end(seq, POLL)
+            if state not in ("active", "canceling"):  # canceling: its end (and who ended the run) comes next
+                return state, why
+            with self._lock:
+                if self._run is not run or self._command is not None:
+                    return "canceled", why
+
+    def _after(self, run, state, why):
+        """The current waypoint's goal ended in ``state``: act on a command, note it, go on or end."""
+        with self._lock:
+            if self._run is not run:
+                return
+            command, self._command = self._command, None
+            if command == "cancel":
+                self._finish(run, CANCELED, "Canceled (POST /runs/{}/cancel).".format(run.id))
+                return
+            if state == "succeeded":
+                run.visit()
+                self._changed(run)
+            elif command == "skip":
+                run.miss("skipped (POST /runs/{}/skip)".format(run.id))
+            elif command == "pause":
+                run.state, run.message = PAUSED, "Paused at {}: resume sends it again.".format(run.target)
+                self._changed(run)
+                self._lock.notify_all()
+                return
+            else:
+                run.miss(why or "the goal ended {}".format(state))
+                if run.on_failure == "stop":
+                    self._finish(run, FAILED, "Could not reach {}: {}".format(run.target, why or state))
+                    return
+            self._dwell_then_advance(run, arrived=state == "succeeded" and command is None)
+
+    def _dwell_then_advance(self, run, arrived):
+        """Lock held: wait ``dwell`` s at a waypoint reached (a command cuts it short), then the next."""
+        if arrived and run.dwell > 0:
+            self._lock.wait_for(lambda: self._command is not None or self._run is not run or self._closed,
+                                timeout=run.dwell)
+            if self._run is not run:
+                return
+            command, self._command = self._command, None
+            if command == "cancel":
+                self._finish(run, CANCELED, "Canceled (POST /runs/{}/cancel).".format(run.id))
+                return
+            if command == "pause":  # paused while waiting: resume goes on to the next waypoint
+                run.state = PAUSED
+        if not run.advance():
+            self._finish(run, SUCCEEDED, _summary(run))
+            return
+        if run.state == PAUSED:
+            run.message = "Paused before {}: resume goes there.".format(run.target)
+        self._changed(run)
+        self._lock.notify_all()
+
+    def close(self):
+        """The server stops: the active run is left ``interrupted``; the worker ends. Idempotent."""
+        self.interrupt("The server stopped while this run was under way; resume it to go on.")
+        with self._lock:
+            self._closed = True
+            self._lock.notify_all()
+        worker = self._worker
+        if worker is not None and worker is not threading.current_thread():
+            worker.join(2.0)
+        self._history.close()
+
+
+def _summary(run):
+    """The closing sentence of a run that went through its loops."""
+    loops = "{} loops".format(run.loop) if run.loop > 1 else "1 loop"
+    if not run.missed:
+        return "Visited every waypoint ({}).".format(loops)
+    return "Done ({}), but {} waypoint visit(s) missed: see 'missed'.".format(loops, len(run.missed))

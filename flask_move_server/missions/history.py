@@ -1,0 +1,72 @@
+"""The runs kept across restarts: ``runs.json`` in the state folder, the newest 50.
+
+Every change of a run is written (by a :class:`~flask_move_server.state_writer.StateWriter`,
+atomically, never in the caller's thread). A run still ``running`` or ``paused`` in the file at
+start was cut short by a stop of the server (SIGTERM, a crash, a power cut): it is
+``interrupted``, and stays so until someone resumes it; the robot never drives off by itself
+after a restart. A file that cannot be read is set aside with a warning: the runs start afresh.
+Not thread-safe: the executor calls it under its own lock. Pure: no rospy, no Flask.
+"""
+
+import json
+import logging
+import os
+
+from flask_move_server.missions.run import INTERRUPTED, Run
+from flask_move_server.state_writer import StateWriter
+from flask_move_server.waypoints import locked_file
+
+log = logging.getLogger(__name__)
+
+KEPT = 50
+CUT_SHORT = "The server stopped while this run was under way (at {}, loop {}); resume it to go on from there."
+
+
+class RunHistory:
+    """The newest :data:`KEPT` runs, newest first, kept in ``path``."""
+
+    def __init__(self, path, keep=KEPT):
+        self.path = path
+        self.keep = keep
+        self._runs = self._load()
+        self.next_id = max((r.id for r in self._runs), default=0) + 1
+        self._writer = StateWriter(path, "the runs", "run-history")
+        if any(r.state == INTERRUPTED for r in self._runs):
+            self.changed()
+
+    def _load(self):
+        try:
+            text = locked_file.read(self.path)  # bounded: a hand-made file cannot be huge
+            runs = [Run.from_dict(item) for item in json.loads(text or "[]")[:self.keep]]
+        except (OSError, ValueError, TypeError, KeyError, AttributeError, RecursionError) as exc:
+            log.warning("the runs kept in %s cannot be read (%s): starting a new list", self.path, exc)
+            return []
+        for run in runs:
+            if run.active:
+                run.end(INTERRUPTED, CUT_SHORT.format(run.target, run.loop))
+                run.ended = None  # interrupted, not over: it can be resumed
+        return runs
+
+    def add(self, run):
+        """Keep ``run`` as the newest; the oldest beyond :attr:`keep` goes."""
+        self._runs.insert(0, run)
+        del self._runs[self.keep:]
+        self.next_id = max(self.next_id, run.id + 1)
+        self.changed()
+
+    def changed(self):
+        """A kept run changed: write the list soon."""
+        self._writer.write(json.dumps([r.as_dict() for r in self._runs], ensure_ascii=False) + "\n")
+
+    def all(self):
+        return list(self._runs)
+
+    def get(self, run_id):
+        return next((r for r in self._runs if r.id == run_id), None)
+
+    def close(self):
+        self._writer.close()
+
+
+def default_path(state_folder):
+    return os.path.join(state_folder, "runs.json")

@@ -1,0 +1,106 @@
+"""A run: one route being driven (or driven once), as data: where it is, what it visited, what it missed.
+
+A run is what ``POST /runs`` starts and ``GET /runs/<id>`` shows; the executor changes it, the
+history keeps it across restarts. Its states::
+
+    running ──▶ paused ──▶ running          (pause / resume)
+    running | paused ──▶ succeeded | failed | canceled
+    running | paused ──▶ interrupted ──▶ running   (the server stopped under it; resume)
+    skipped                                   (a schedule found the robot busy: never ran)
+
+Pure: no rospy, no Flask.
+"""
+
+import datetime
+from dataclasses import dataclass, field
+
+RUNNING, PAUSED, SUCCEEDED, FAILED, CANCELED, INTERRUPTED, SKIPPED = (
+    "running", "paused", "succeeded", "failed", "canceled", "interrupted", "skipped")
+STATES = (RUNNING, PAUSED, SUCCEEDED, FAILED, CANCELED, INTERRUPTED, SKIPPED)
+ACTIVE = (RUNNING, PAUSED)  # a run the robot is doing: at most one at a time
+TRIGGERS = ("api", "schedule", "mqtt", "vda5050")
+KEPT_STOPS = 100  # visited / missed entries kept per run (a patrol "until stopped" must not grow for ever)
+
+
+def now_text():
+    """The robot's local time now, ISO 8601 with its offset, to the second."""
+    return datetime.datetime.now().astimezone().isoformat(timespec="seconds")
+
+
+@dataclass
+class Run:
+    """One run of a route. ``loop`` counts from 1; ``index`` is the waypoint being gone to (or dwelt at)."""
+
+    id: int
+    route: object  # the route's name, or None for an unnamed one
+    waypoints: list
+    loops: int
+    dwell: float
+    on_failure: str
+    trigger: str
+    state: str = RUNNING
+    loop: int = 1
+    index: int = 0
+    visited: list = field(default_factory=list)
+    missed: list = field(default_factory=list)
+    started: str = field(default_factory=now_text)
+    ended: object = None
+    message: object = None
+
+    @classmethod
+    def of_route(cls, run_id, route, trigger):
+        return cls(run_id, route.name, list(route.waypoints), route.loops, route.dwell, route.on_failure, trigger)
+
+    @property
+    def active(self):
+        return self.state in ACTIVE
+
+    @property
+    def target(self):
+        """The waypoint name the run is at or on its way to; None once ended."""
+        return self.waypoints[self.index] if self.active or self.state == INTERRUPTED else None
+
+    def visit(self):
+        """The current waypoint was reached."""
+        self._note(self.visited, {"name": self.target, "loop": self.loop, "at": now_text()})
+
+    def miss(self, reason):
+        """The current waypoint was not reached, for ``reason`` (move_base's, or who skipped it)."""
+        self._note(self.missed, {"name": self.target, "loop": self.loop, "reason": reason})
+
+    def _note(self, entries, entry):
+        entries.append(entry)
+        del entries[:-KEPT_STOPS]
+
+    def advance(self):
+        """On to the next waypoint (the next loop after the last); False when the run is through."""
+        if self.index + 1 < len(self.waypoints):
+            self.index += 1
+            return True
+        if self.loops and self.loop >= self.loops:
+            return False
+        self.loop, self.index = self.loop + 1, 0
+        return True
+
+    def end(self, state, message=None):
+        self.state, self.message, self.ended = state, message, now_text()
+
+    def as_dict(self, distance_remaining=None):
+        """What the API shows; ``distance_remaining`` to the current waypoint, when known."""
+        target = self.target
+        current = {"name": target, "distance_remaining": distance_remaining} if target is not None else None
+        return {"id": self.id, "route": self.route, "waypoints": list(self.waypoints), "loops": self.loops,
+                "dwell": self.dwell, "on_failure": self.on_failure, "trigger": self.trigger, "state": self.state,
+                "loop": self.loop, "index": self.index, "current": current, "visited": list(self.visited),
+                "missed": list(self.missed), "started": self.started, "ended": self.ended, "message": self.message}
+
+    @classmethod
+    def from_dict(cls, data):
+        """A run as the history file kept it; ValueError (or TypeError, KeyError) when it is not one."""
+        run = cls(int(data["id"]), data["route"], [str(w) for w in data["waypoints"]], int(data["loops"]),
+                  float(data["dwell"]), str(data["on_failure"]), str(data["trigger"]), str(data["state"]),
+                  int(data["loop"]), int(data["index"]), list(data["visited"]), list(data["missed"]),
+                  str(data["started"]), data.get("ended"), data.get("message"))
+        if run.state not in STATES or not run.waypoints or not 0 <= run.index < len(run.waypoints):
+            raise ValueError("not a run: state {!r}, index {}".format(run.state, run.index))
+        return run
