@@ -12,19 +12,22 @@ from flask import Blueprint, current_app, jsonify
 
 from flask_move_server import __version__
 from flask_move_server.maps.catalogue import MAP_NAME_RULE
+from flask_move_server.missions import route as routes
+from flask_move_server.missions import run as runs
 from flask_move_server.modes.targets import MODES
 from flask_move_server.waypoints import NAME_RULE, POSITION_LIMIT, YAW_LIMIT
 
 description = Blueprint("openapi", __name__)
 
 ERROR_CODES = {
-    400: "bad_request, bad_waypoint, bad_map_name: a malformed body, field, name or coordinate",
+    400: "bad_request, bad_waypoint, bad_map_name, bad_route: a malformed body, field, name, coordinate or route",
     401: "unauthorized: the token is missing or wrong (a token is configured)",
     403: "unknown_host, forbidden_origin: a name the robot does not have, or another site's web page",
-    404: "unknown_waypoint (with suggestions), unknown_map, no_map, not_found: no such waypoint, map or endpoint",
+    404: "unknown_waypoint (with suggestions), unknown_map, unknown_route, unknown_run, no_map, not_found: no such "
+         "waypoint, map, route, run or endpoint",
     405: "method_not_allowed: the path takes other methods (the Allow header lists them)",
     409: "navigation_failed (with state), no_pose, command_late, estop_latched, estop_button_pressed, waypoints_file, "
-         "wrong_mode, map_exists, map_in_use, map_configured, mode_switching, modes_off",
+         "wrong_mode, map_exists, map_in_use, map_configured, mode_switching, modes_off, waypoint_in_use, run_conflict",
     413: "body_too_large: the body is over server.max_body_bytes",
     503: "ros_unavailable, move_base_unavailable, drive_error, shutting_down, waypoints_locked, map_file, "
          "no_map_received, stack_failed, too_many_streams",
@@ -61,6 +64,7 @@ def build(config):
     paths.update(_static_files())
     paths.update(_mode_paths(config))
     paths.update(_diagnostics())
+    paths.update(_missions())
     if config.server.static:
         paths.update(_page())
     return {
@@ -187,6 +191,87 @@ def _diagnostics():
         {"name": "box", "in": "query", "required": False, "schema": {"enum": ["0", "1"]},
          "description": "1: also the box-ahead test of the laser's yaw (a box about 1 m ahead, nothing nearer)"}]
     return {"/diagnostics": {"get": operation}}
+
+
+def _missions():
+    """``/routes`` and ``/runs`` (docs/routes.md): routes of the active map, runs of them."""
+    fields = _route_fields()
+    route = _object(dict(fields, name={"type": "string"}), ["name", "waypoints", "loops", "dwell", "on_failure",
+                                                             "schedule"])
+    put = _object(fields, ["waypoints"])
+    unnamed = _object({k: v for k, v in fields.items() if k != "schedule"}, ["waypoints"])
+    unnamed["properties"]["valid_until"] = VALID_UNTIL
+    named = _object({"route": _name("a route's name"), "valid_until": VALID_UNTIL}, ["route"])
+    run = _run_schema()
+    started = _ok({"run": run})
+    action = {name: _with_run_id(_operation(summary, NO_FIELDS, {200: _json(run)}, errors=(404, 409),
+                                            body_optional=True))
+              for name, summary in (("pause", "Pause: the robot stops where it is"),
+                                    ("resume", "Resume: the current waypoint is sent again"),
+                                    ("skip", "Skip the current waypoint (noted as missed)"),
+                                    ("cancel", "Cancel the run"))}
+    paths = {
+        "/routes": {"get": _operation("The active map's routes", None, {200: _json(_object(
+            {"routes": {"type": "array", "items": route}}))})},
+        "/routes/{name}": _route_item(route, put),
+        "/runs": {"get": _operation("The runs kept, newest first (the last {})".format(50), None, {200: _json(
+                      _object({"runs": {"type": "array", "items": run}}))}),
+                  "post": _operation("Start a run of a route, or of an unnamed one", {"oneOf": [named, unnamed]},
+                                     {202: started}, errors=(404, 409, 503))},
+        "/runs/{run_id}": {"get": _with_run_id(_operation("One run", None, {200: _json(run)}, errors=(404,)))},
+    }
+    paths.update({"/runs/{run_id}/" + name: {"post": operation} for name, operation in action.items()})
+    return paths
+
+
+def _route_fields():
+    return {"waypoints": {"type": "array", "minItems": 1, "maxItems": routes.MAX_WAYPOINTS, "items": _name(),
+                          "description": "waypoint names of the active map, in the order to visit them"},
+            "loops": {"type": "integer", "minimum": 0, "maximum": routes.MAX_LOOPS,
+                      "description": "how many times to go round; 0: until stopped"},
+            "dwell": {"type": "number", "minimum": 0, "maximum": routes.MAX_DWELL,
+                      "description": "seconds to wait at each waypoint"},
+            "on_failure": {"enum": list(routes.ON_FAILURE), "description": "a waypoint not reached: end the run "
+                                                                          "(stop) or note it and go on (skip)"},
+            "schedule": {"type": "array", "maxItems": routes.MAX_SCHEDULE, "items": {"type": "string"},
+                         "description": "times to start a run, the robot's local time: \"21:30\", "
+                                        "\"mon-fri 09:00\", \"sat,sun 10:15\""}}
+
+
+def _route_item(route, put):
+    name = {"name": "name", "in": "path", "required": True, "description": NAME_RULE, "schema": _name()}
+    saved = _ok({"created": {"type": "boolean"}, "route": route})
+    item = {
+        "get": _operation("One route", None, {200: _json(route)}, errors=(400, 404)),
+        "put": _operation("Create or replace a route (saved before the answer)", put,
+                          {200: dict(saved, description="replaced"), 201: dict(saved, description="created")},
+                          errors=(409, 503)),
+        "delete": _operation("Delete a route (saved before the answer)", None, {204: {"description": "deleted"}},
+                             errors=(400, 404, 409, 503)),
+    }
+    for operation in item.values():
+        operation["parameters"] = [name]
+    return item
+
+
+def _run_schema():
+    stop = {"type": "object", "additionalProperties": True}
+    return _object({"id": {"type": "integer"}, "route": {"type": "string", "nullable": True},
+                    "waypoints": {"type": "array", "items": {"type": "string"}}, "loops": {"type": "integer"},
+                    "dwell": {"type": "number"}, "on_failure": {"enum": list(routes.ON_FAILURE)},
+                    "trigger": {"enum": list(runs.TRIGGERS)}, "state": {"enum": list(runs.STATES)},
+                    "loop": {"type": "integer"}, "index": {"type": "integer"},
+                    "current": {"type": "object", "nullable": True, "additionalProperties": True},
+                    "visited": {"type": "array", "items": stop}, "missed": {"type": "array", "items": stop},
+                    "started": {"type": "string"}, "ended": {"type": "string", "nullable": True},
+                    "message": {"type": "string", "nullable": True}},
+                   ["id", "route", "waypoints", "state", "loop", "index", "current", "visited", "missed"])
+
+
+def _with_run_id(operation):
+    operation["parameters"] = [{"name": "run_id", "in": "path", "required": True, "schema": {"type": "integer",
+                                "minimum": 0}, "description": "the run's id (GET /runs)"}]
+    return operation
 
 
 def _maps():
