@@ -291,6 +291,10 @@ def test_an_hour_repeated_in_autumn_runs_its_routes_once(berlin):
 
 # -- the thread ----------------------------------------------------------------------------------------------
 
+def scheduler_running():
+    return any(t.name == "route-scheduler" for t in threading.enumerate())
+
+
 def running_wall(start):
     """A wall clock that runs in real time from ``start``."""
     t0 = time.monotonic()
@@ -305,12 +309,12 @@ def test_the_thread_starts_a_route_just_after_its_minute():
         done.set()
 
     wall = running_wall(at(*MONDAY, 21, 29, 59.6))
-    with Scheduler(lambda: [route("rounds", "21:30")], on_due, wall=wall, local=utc_local) as sched:
+    with Scheduler(lambda: [route("rounds", "21:30")], on_due, wall=wall, local=utc_local):
         assert done.wait(3), "the 21:30 route was not started"
         when = wall()
     assert started == [("rounds", "route-scheduler")]
     assert at(*MONDAY, 21, 30, 0.0) < when < at(*MONDAY, 21, 30, 1.0)
-    assert not sched._thread.is_alive()
+    assert not scheduler_running()
 
 
 def test_close_returns_at_once_while_the_thread_sleeps_till_the_next_minute():
@@ -320,7 +324,7 @@ def test_close_returns_at_once_while_the_thread_sleeps_till_the_next_minute():
     t0 = time.monotonic()
     sched.close()
     assert time.monotonic() - t0 < 1.0
-    assert not any(t.name == "route-scheduler" for t in threading.enumerate())
+    assert not scheduler_running()
     sched.close()  # twice is fine
 
 
@@ -331,7 +335,7 @@ def test_a_failing_check_does_not_end_the_thread(caplog):
     sched = Scheduler(routes, lambda r: None, wall=running_wall(at(*MONDAY, 21, 29, 59.7)), local=utc_local)
     with sched:
         wait_for(lambda: "could not read the routes" in caplog.text, timeout=3, message="the check's log")
-        assert sched._thread.is_alive()
+        assert scheduler_running()
 
 
 def test_a_clock_leaping_at_every_look_does_not_make_the_thread_spin():
