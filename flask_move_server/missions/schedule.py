@@ -7,6 +7,7 @@ as ``"mon-fri 09:00"``), so the file and the API say the same thing. Pure: no th
 
 import re
 from dataclasses import dataclass
+from datetime import datetime, time, timedelta
 
 from flask_move_server.errors import BadRoute, shown
 
@@ -59,3 +60,24 @@ def _days(spec, entry):
         a, b = DAYS.index(first), DAYS.index(last or first)
         days.update(range(a, b + 1) if a <= b else list(range(a, 7)) + list(range(0, b + 1)))
     return frozenset(days), spec
+
+
+def next_due(slots, after):
+    """The next local datetime, strictly after ``after``, at which one of ``slots`` starts a run; None without slots.
+
+    For the API's "next run". ``after`` is a local datetime (naive, or aware: the answer keeps its
+    tzinfo). A time a daylight-saving change skips that day is still given: this module has no clock
+    or zone to know it; the scheduler simply finds no such minute and runs nothing then.
+    """
+    candidates = [start for start in (_next_of(slot, after) for slot in slots) if start is not None]
+    return min(candidates) if candidates else None
+
+
+def _next_of(slot, after):
+    """The first start of ``slot`` after ``after`` (a week and a day ahead at most), None for a slot of no day."""
+    for ahead in range(8):
+        day = after.date() + timedelta(days=ahead)
+        start = datetime.combine(day, time(slot.hour, slot.minute), tzinfo=after.tzinfo)
+        if day.weekday() in slot.days and start > after:
+            return start
+    return None
