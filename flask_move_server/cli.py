@@ -96,13 +96,18 @@ class Server:
 
     def _build_runs(self, stack, robot, store):
         """The one executor of runs (routes from the API, the page, schedules), its history in ``runs.json``
-        of the state folder; closed before the robot, leaving a run under way ``interrupted``."""
+        of the state folder, and the scheduler feeding it; closed before the robot, leaving a run under way
+        ``interrupted``."""
         from flask_move_server.missions.executor import RunExecutor
         from flask_move_server.missions.history import RunHistory, default_path
+        from flask_move_server.missions.scheduler import Scheduler
 
         history = RunHistory(default_path(self.config.state_folder()))
         runs = RunExecutor(robot, store, history, events=self.events, modes=self.modes)
         stack.callback(runs.close)
+        scheduler = Scheduler(lambda: store.routes(), runs.scheduled)  # the active map's routes, asked afresh each minute
+        stack.callback(scheduler.close)  # closed first: no run starts while the server stops
+        scheduler.start()
         robot.runs = runs
         self.runs = runs
         return runs

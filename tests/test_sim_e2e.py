@@ -30,11 +30,15 @@ DEMO_WAYPOINTS = os.path.join(ROOT, "config", "waypoints.demo.yaml")
 class SimServer(SimReads, ServerProcess):
     """``flask-move-server --sim`` in a child process, ready to drive."""
 
-    def __init__(self, tmp_path, sim_config=""):
+    def __init__(self, tmp_path, sim_config="", waypoints_text=None):
+        """``waypoints_text``: the waypoints file to start with (default the demo's); "" keeps the one there."""
         self.master_port = free_port()
         self.master_uri = "http://127.0.0.1:{}".format(self.master_port)
         self.waypoints = tmp_path / "waypoints.yaml"
-        shutil.copy(DEMO_WAYPOINTS, str(self.waypoints))
+        if waypoints_text is None:
+            shutil.copy(DEMO_WAYPOINTS, str(self.waypoints))
+        elif waypoints_text:
+            self.waypoints.write_text(waypoints_text, encoding="utf-8")
         config = tmp_path / "sim.yaml"
         config.write_text("sim:\n  speed_factor: {}\n{}".format(SPEED_FACTOR, sim_config))
         env = {"ROS_MASTER_URI": self.master_uri, "ROS_HOME": str(tmp_path), "ROS_LOG_DIR": str(tmp_path / "log"),
