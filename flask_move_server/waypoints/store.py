@@ -167,9 +167,8 @@ class WaypointStore:
                 raise UnknownWaypoint(name, suggest(name, waypoints))
             users = [route.name for route in routes.values() if name in route.waypoints]
             if users:
-                raise WaypointInUse("The waypoint {} is used by the route{} {}: change or delete {} first.".format(
-                    shown(name), "s" if len(users) > 1 else "", ", ".join(shown(u) for u in users),
-                    "them" if len(users) > 1 else "it"))
+                raise WaypointInUse("The waypoint {} is used by {}: change or delete {} first.".format(
+                    shown(name), _listed("route", users), "them" if len(users) > 1 else "it"))
             del waypoints[name]
 
     def put_route(self, route):
@@ -183,9 +182,8 @@ class WaypointStore:
         with self._edit() as (waypoints, routes):
             unknown = list(dict.fromkeys(w for w in route.waypoints if w not in waypoints))
             if unknown:
-                raise BadRoute("The route {} names waypoint{} this map does not have: {}. GET /waypoints lists "
-                               "the known names.".format(shown(route.name), "s" if len(unknown) > 1 else "",
-                                                         ", ".join(shown(w) for w in unknown)))
+                raise BadRoute("The route {} goes through {} this map does not have. GET /waypoints lists the "
+                               "known names.".format(shown(route.name), _listed("waypoint", unknown)))
             created = route.name not in routes
             routes[route.name] = route
         return created
@@ -287,6 +285,11 @@ class WaypointStore:
                         "afresh); the file as it was, comments and all, is %s.bak until the next change: copy "
                         "it to keep it", self.path, self.path)
         self._stamp, self._good_text = waypoints_file.stamp(self.path), text
+
+
+def _listed(kind, names):
+    """'the route "a"' or 'the routes "a", "b"': names quoted as errors quote them."""
+    return "the {}{} {}".format(kind, "s" if len(names) > 1 else "", ", ".join(shown(n) for n in names))
 
 
 def _unknown_route(name, routes):
