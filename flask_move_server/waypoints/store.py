@@ -1,4 +1,4 @@
-"""The waypoints of one YAML file, shared by the server's threads and by other processes.
+"""The waypoints and routes of one YAML file, shared by the server's threads and by other processes.
 
 :class:`WaypointStore` owns the file: every change is saved before it is acknowledged (temp
 file in the same directory, fsync, rename, fsync of the directory, the previous version kept
@@ -10,7 +10,11 @@ deletion: only ``waypoints: {}`` clears them. A broken file, at start-up too, is
 last good set (none before one loaded) with :attr:`~WaypointStore.problem` saying why, logged
 once per version of the file, and refuses changes until fixed. A save writes the seed format
 afresh, so comments written by hand are dropped: the save that drops them leaves the file as
-it was in ``.bak`` (as every save does) and says so in the log. The file plumbing lives in
+it was in ``.bak`` (as every save does) and says so in the log. The map's routes live in the
+same file and share every guarantee; a route names only waypoints of the store when it is put,
+and a waypoint a route goes through cannot be deleted (a rename follows into the routes). A hand
+edit may still leave a route naming a waypoint the file lacks: it loads, with a warning, and a
+run of it misses that stop. The file plumbing lives in
 :mod:`flask_move_server.waypoints.locked_file`, the format in
 :mod:`flask_move_server.waypoints.yaml_format`. Pure: no rospy, no Flask.
 """
@@ -21,16 +25,25 @@ import os
 import shlex
 import threading
 
-from flask_move_server.errors import UnknownWaypoint, WaypointExists, WaypointFileError, shown
+from flask_move_server.errors import (
+    BadRoute,
+    UnknownRoute,
+    UnknownWaypoint,
+    WaypointExists,
+    WaypointFileError,
+    WaypointInUse,
+    shown,
+)
+from flask_move_server.missions.route import check_route_name
 from flask_move_server.waypoints import Waypoint, check_name, suggest
 from flask_move_server.waypoints import locked_file as waypoints_file
-from flask_move_server.waypoints.yaml_format import dump, entries_of, parse, waypoints_of
+from flask_move_server.waypoints.yaml_format import Document, dump, entries_of, parse, routes_of, waypoints_of
 
 log = logging.getLogger(__name__)
 
 
 class WaypointStore:
-    """The waypoints of one YAML file, safe to share between threads and processes.
+    """The waypoints and routes of one YAML file, safe to share between threads and processes.
 
     Readers take only the in-process lock, never the cross-process file lock,
     so a stuck ``record-waypoints`` holding the file lock cannot block them.
@@ -41,6 +54,7 @@ class WaypointStore:
         self.lock_timeout = lock_timeout
         self._lock = threading.Lock()
         self._waypoints = {}  # the last good set
+        self._routes = {}  # and its routes, {name: Route} in file order
         self._good_text = None  # its file text: what .bak becomes on the next save
         self._loaded = False
         self._stamp = None
@@ -65,7 +79,7 @@ class WaypointStore:
                 return
             log.info("waypoints: now serving %s", path)
             self.path = path
-            self._waypoints, self._good_text, self._loaded = {}, None, False
+            self._waypoints, self._routes, self._good_text, self._loaded = {}, {}, None, False
             self._stamp = self._problem = None
             self.version += 1
             self._refresh()
@@ -108,6 +122,24 @@ class WaypointStore:
             except KeyError:
                 raise UnknownWaypoint(name, suggest(name, self._waypoints))
 
+    def routes(self):
+        """Every route of the file, in file order."""
+        with self._lock:
+            self._refresh()
+            found = list(self._routes.values())
+        self._announce()
+        return found
+
+    def get_route(self, name):
+        """The route called ``name`` (in any Unicode normal form); UnknownRoute with close names if none."""
+        name = check_route_name(name)
+        with self._lock:
+            self._refresh()
+            try:
+                return self._routes[name]
+            except KeyError:
+                raise _unknown_route(name, self._routes)
+
     @property
     def problem(self):
         """Why the file on disk cannot be loaded now (shown by /status), or None."""
@@ -119,18 +151,50 @@ class WaypointStore:
 
     def put(self, waypoint):
         """Add or replace ``waypoint``; True when it is new. Saved before returning."""
-        with self._edit() as waypoints:
+        with self._edit() as (waypoints, _):
             created = waypoint.name not in waypoints
             waypoints[waypoint.name] = waypoint
         return created
 
     def delete(self, name):
-        """Remove the waypoint ``name``. Saved before returning."""
+        """Remove the waypoint ``name``. Saved before returning.
+
+        WaypointInUse naming the routes that go through it, nothing written: they would lose a stop.
+        """
         name = check_name(name)
-        with self._edit() as waypoints:
+        with self._edit() as (waypoints, routes):
             if name not in waypoints:
                 raise UnknownWaypoint(name, suggest(name, waypoints))
+            users = [route.name for route in routes.values() if name in route.waypoints]
+            if users:
+                raise WaypointInUse("The waypoint {} is used by {}: change or delete {} first.".format(
+                    shown(name), _listed("route", users), "them" if len(users) > 1 else "it"))
             del waypoints[name]
+
+    def put_route(self, route):
+        """Add or replace ``route`` (a named Route); True when it is new. Saved before returning.
+
+        Every waypoint it names must be one of the store's: else BadRoute naming each unknown one,
+        nothing written (a run would miss them).
+        """
+        if route.name is None:
+            raise BadRoute("A route kept in the waypoints file needs a name.")
+        with self._edit() as (waypoints, routes):
+            unknown = list(dict.fromkeys(w for w in route.waypoints if w not in waypoints))
+            if unknown:
+                raise BadRoute("The route {} goes through {} this map does not have. GET /waypoints lists the "
+                               "known names.".format(shown(route.name), _listed("waypoint", unknown)))
+            created = route.name not in routes
+            routes[route.name] = route
+        return created
+
+    def delete_route(self, name):
+        """Remove the route ``name`` (its waypoints stay). Saved before returning."""
+        name = check_route_name(name)
+        with self._edit() as (_, routes):
+            if name not in routes:
+                raise _unknown_route(name, routes)
+            del routes[name]
 
     def rename(self, old, new, overwrite=False):
         """Give waypoint ``old`` the name ``new`` in one save, keeping its place in the file.
@@ -139,7 +203,7 @@ class WaypointStore:
         in the same save (never a moment with both or neither). Returns the renamed Waypoint.
         """
         old, new = check_name(old), check_name(new)
-        with self._edit() as waypoints:
+        with self._edit() as (waypoints, routes):
             if old not in waypoints:
                 raise UnknownWaypoint(old, suggest(old, waypoints))
             if new in waypoints and new != old and not overwrite:
@@ -149,6 +213,8 @@ class WaypointStore:
             waypoints.clear()
             for k, v in items:
                 waypoints[k] = Waypoint(k, v.x, v.y, v.yaw)
+            for k, route in routes.items():  # the routes go on through the same place, under its new name
+                routes[k] = route.renamed_waypoint(old, new)
             return waypoints[new]
 
     @contextlib.contextmanager
@@ -157,10 +223,10 @@ class WaypointStore:
         # readers never wait behind a writer that waits for another process.
         with waypoints_file.file_lock(self.path + ".lock", self.lock_timeout), self._lock:
             self._refresh(strict=True)
-            waypoints = dict(self._waypoints)
-            yield waypoints
-            self._save(waypoints)
-            self._waypoints = waypoints
+            waypoints, routes = dict(self._waypoints), dict(self._routes)
+            yield waypoints, routes
+            self._save(waypoints, routes)
+            self._waypoints, self._routes = waypoints, routes
             self.version += 1
         self._announce()
 
@@ -173,7 +239,7 @@ class WaypointStore:
             return
         try:
             text = waypoints_file.read(self.path)
-            waypoints = self._load(text)
+            waypoints, routes = self._load(text)
         except WaypointFileError as exc:
             self._broken(stamp, str(exc))
             if strict:
@@ -183,9 +249,11 @@ class WaypointStore:
                 )
             return
         if self._stamp is not None:
-            log.info("reloaded %s: it changed on disk (%d waypoints)", self.path, len(waypoints))
+            log.info("reloaded %s: it changed on disk (%d waypoints, %d routes)", self.path, len(waypoints),
+                     len(routes))
             self.version += 1
-        self._waypoints, self._good_text, self._loaded = waypoints, text, True
+        _warn_of_missing_stops(self.path, waypoints, routes)  # once per version of the file: loaded once
+        self._waypoints, self._routes, self._good_text, self._loaded = waypoints, routes, text, True
         self._stamp, self._problem = stamp, None
 
     def _broken(self, stamp, problem):
@@ -197,16 +265,17 @@ class WaypointStore:
         self._stamp, self._problem = stamp, problem
 
     def _load(self, text):
-        """The waypoints of ``text``, or WaypointFileError when it is broken or would lose the last good set."""
+        """The Document (waypoints, routes) of ``text``; WaypointFileError when it is broken or would lose
+        the last good set."""
         entries = entries_of(text, self.path) if text is not None else None
         known = len(self._waypoints) if self._loaded else _count_backup(self.path)
         loss = _why_lost(text, entries, self._loaded) if known else None
         if loss:
             raise WaypointFileError("{} {}, but the last good version had {} waypoints".format(self.path, loss, known))
-        return waypoints_of(entries, self.path)
+        return Document(waypoints_of(entries, self.path), routes_of(entries, self.path))
 
-    def _save(self, waypoints):
-        text = dump(waypoints.values())
+    def _save(self, waypoints, routes):
+        text = dump(waypoints.values(), routes.values())
         try:
             waypoints_file.atomic_write(self.path, text, backup_text=self._good_text)
         except OSError as exc:
@@ -216,6 +285,31 @@ class WaypointStore:
                         "afresh); the file as it was, comments and all, is %s.bak until the next change: copy "
                         "it to keep it", self.path, self.path)
         self._stamp, self._good_text = waypoints_file.stamp(self.path), text
+
+
+def _listed(kind, names):
+    """'the route "a"' or 'the routes "a", "b"': names quoted as errors quote them."""
+    return "the {}{} {}".format(kind, "s" if len(names) > 1 else "", ", ".join(shown(n) for n in names))
+
+
+def _unknown_route(name, routes):
+    """UnknownRoute for ``name``, suggesting close route names, else where to find them."""
+    message = "No route named {}.".format(shown(name))
+    close = suggest(name, routes)
+    if close:
+        message += " Did you mean: {}?".format(", ".join(shown(c) for c in close))
+    else:
+        message += " GET /routes lists them."
+    return UnknownRoute(message)
+
+
+def _warn_of_missing_stops(path, waypoints, routes):
+    """Log each route of a (hand-edited) file naming waypoints the file lacks: a run of it will miss them."""
+    for route in routes.values():
+        missing = [w for w in dict.fromkeys(route.waypoints) if w not in waypoints]
+        if missing:
+            log.warning("%s: the route %s names waypoints the file does not have (%s); a run of it will miss "
+                        "them", path, shown(route.name), ", ".join(shown(w) for w in missing))
 
 
 def _why_lost(text, entries, loaded):

@@ -1,23 +1,28 @@
-"""The waypoints file format: YAML text <-> ordered ``{name: Waypoint}``.
+"""The waypoints file format: YAML text <-> ordered ``{name: Waypoint}`` and ``{name: Route}``.
 
-The format is the mapping guide's::
+The format is the mapping guide's, with the map's routes (if any) beside the waypoints::
 
     waypoints:
       kitchen: [1.23, 4.56, 0.79]     # x [m], y [m], yaw [rad] in the map frame
+    routes:
+      rounds: {waypoints: [kitchen, dock], loops: 1, dwell: 5.0, on_failure: skip, schedule: ["21:30"]}
 
-(``{x: .., y: .., yaw: ..}`` per entry loads too). The text is read by
+(``{x: .., y: .., yaw: ..}`` per entry loads too; each route is read by
+:func:`~flask_move_server.missions.route.make_route`). The text is read by
 :mod:`~flask_move_server.waypoints.safe_yaml` (a name given twice, anchors, aliases and deep
 nesting refused); whatever makes a file unreadable is a :class:`WaypointFileError` saying the
 line and what is wrong, never the file's text. :func:`dump` writes the seed format back, with
-numbers PyYAML reads as floats. Pure: PyYAML only.
+numbers PyYAML reads as floats, and ``routes:`` only when there are routes. Pure: PyYAML only.
 """
 
+import collections
 import json
 import re
 
 import yaml
 
-from flask_move_server.errors import BadWaypoint, WaypointFileError
+from flask_move_server.errors import BadRoute, BadWaypoint, WaypointFileError, shown
+from flask_move_server.missions.route import make_route
 from flask_move_server.waypoints import (
     NAME_RULE,
     POSITION_LIMIT,
@@ -33,22 +38,38 @@ _BOUNDS = (("x", POSITION_LIMIT), ("y", POSITION_LIMIT), ("yaw", YAW_LIMIT))
 
 
 class Entries(dict):
-    """The raw ``waypoints:`` mapping, knowing the line each name is on (for errors) and whether the
-    text ended open, right after a bare value (``safe_yaml.Document.open_end``)."""
+    """The raw ``waypoints:`` mapping, knowing the line each name is on (for errors), whether the
+    text ended open, right after a bare value (``safe_yaml.Document.open_end``), and the raw
+    ``routes:`` mapping beside it (``{}`` when the file has none)."""
 
-    def __init__(self, entries, lines, open_end=False):
+    def __init__(self, entries, lines, open_end=False, routes=None):
         super().__init__(entries)
         self.lines = lines
         self.open_end = open_end
+        self.routes = routes or {}
 
-    def where(self, name):
-        line = self.lines.get(("waypoints", name))
+    def where(self, name, section="waypoints"):
+        line = self.lines.get((section, name))
         return ", line {}".format(line) if line else ""
+
+
+class Document(collections.namedtuple("Document", "waypoints routes")):
+    """What a waypoints file holds: ordered ``{name: Waypoint}`` and ordered ``{name: Route}``."""
 
 
 def parse(text, source="waypoints"):
     """Parse the waypoints file's text into an ordered ``{name: Waypoint}``."""
     return waypoints_of(entries_of(text, source), source)
+
+
+def parse_document(text, source="waypoints"):
+    """Parse the waypoints file's text into a :class:`Document`: its waypoints and its routes.
+
+    A route may name a waypoint the file does not have (a hand edit): whether each exists is the
+    store's question, not the format's.
+    """
+    entries = entries_of(text, source)
+    return Document(waypoints_of(entries, source), routes_of(entries, source))
 
 
 def entries_of(text, source="waypoints"):
@@ -59,15 +80,22 @@ def entries_of(text, source="waypoints"):
         raise WaypointFileError("{} is not valid YAML: {}".format(source, exc))
     if data is None:
         return None
-    if not isinstance(data, dict) or set(data) - {"waypoints"}:
-        raise WaypointFileError("{} must hold one mapping, 'waypoints: {{name: [x, y, yaw]}}'".format(source))
-    entries = data.get("waypoints")
+    if not isinstance(data, dict) or set(data) - {"waypoints", "routes"}:
+        raise WaypointFileError("{} must hold one mapping, 'waypoints: {{name: [x, y, yaw]}}', and 'routes:' "
+                                "beside it if the map has routes".format(source))
+    entries, routes = data.get("waypoints"), data.get("routes")
+    if entries is None and routes is not None:
+        raise WaypointFileError("{}, line {}: 'routes' needs 'waypoints:' beside it (write 'waypoints: {{}}' "
+                                "for none)".format(source, lines.get(("routes",), 1)))
     if entries is None:
         return None
     if not isinstance(entries, dict):
         raise WaypointFileError("{}, line {}: 'waypoints' must map names to [x, y, yaw]".format(
             source, lines.get(("waypoints",), 1)))
-    return Entries(entries, lines, open_end)
+    if not isinstance(routes, (dict, type(None))):
+        raise WaypointFileError("{}, line {}: 'routes' must map names to routes, 'name: {{waypoints: [names], "
+                                "...}}'".format(source, lines.get(("routes",), 1)))
+    return Entries(entries, lines, open_end, routes)
 
 
 def waypoints_of(entries, source):
@@ -84,6 +112,35 @@ def waypoints_of(entries, source):
                                     .format(source, where))
         waypoints[waypoint.name] = waypoint
     return waypoints
+
+
+def routes_of(entries, source):
+    """``{name: Route}`` of the raw ``routes:`` beside ``entries``; WaypointFileError saying the bad entry's line."""
+    routes = {}
+    for name, entry in (entries.routes if isinstance(entries, Entries) else {}).items():
+        where = entries.where(name, "routes")
+        try:
+            route = make_route(name, entry)
+        except BadRoute as exc:
+            raise WaypointFileError("{}{}: {}".format(source, where, _unquoted(str(exc), name, entry)))
+        if route.name in routes:
+            raise WaypointFileError("{}{}: a route name appears twice (written with its accents composed "
+                                    "differently)".format(source, where))
+        routes[route.name] = route
+    return routes
+
+
+def _unquoted(message, name, entry):
+    """BadRoute's ``message`` without the text it quotes from the file: the file may be a link to
+    anything, so its errors say where and what, never its words (numbers are no secret and stay)."""
+    if not isinstance(entry, dict):  # "a route is an object": nothing of the file quoted
+        return message
+    texts = [name] + [str(key) for key in entry] + list(entry.values())  # an unknown field is quoted as text
+    texts += [item for value in entry.values() if isinstance(value, list) for item in value]
+    quoted = {shown(text) for text in texts if isinstance(text, (str, list, dict))}
+    for text in sorted(quoted, key=len, reverse=True):  # "ab" before "a"
+        message = message.replace(text, "(as written)")
+    return message
 
 
 def _entry(name, entry):
@@ -106,13 +163,28 @@ def _coordinate(label, limit, value):
         raise BadWaypoint("{} must be a finite number between {:.0f} and {:.0f}".format(label, -limit, limit))
 
 
-def dump(waypoints):
-    """The file text for ``waypoints`` (an iterable of Waypoint), in the seed format."""
+def dump(waypoints, routes=()):
+    """The file text for ``waypoints`` (Waypoints) and ``routes`` (Routes), each an iterable in file order.
+
+    The seed format, and a ``routes:`` block after it only when there are routes (a file without
+    routes is written back as it was), one line per route.
+    """
+    waypoints, routes = list(waypoints), list(routes)
     lines = ["waypoints:" if waypoints else "waypoints: {}"]
     for wp in waypoints:
         coords = ", ".join(_number(v) for v in (wp.x, wp.y, wp.yaw))
         lines.append("  {}: [{}]".format(_key(wp.name), coords))
+    if routes:
+        lines.append("routes:")
+        lines.extend("  {}: {}".format(_key(route.name), _route_line(route)) for route in routes)
     return "\n".join(lines) + "\n"
+
+
+def _route_line(route):
+    """One route as a flow mapping: every field, defaults included, so the file says what a run does."""
+    return "{{waypoints: [{}], loops: {:d}, dwell: {}, on_failure: {}, schedule: [{}]}}".format(
+        ", ".join(_key(name) for name in route.waypoints), route.loops, _number(route.dwell), route.on_failure,
+        ", ".join(json.dumps(entry, ensure_ascii=False) for entry in route.schedule))
 
 
 def _key(name):
