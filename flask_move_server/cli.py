@@ -105,7 +105,7 @@ class Server:
         history = RunHistory(default_path(self.config.state_folder()))
         runs = RunExecutor(robot, store, history, events=self.events, modes=self.modes)
         stack.callback(runs.close)
-        scheduler = Scheduler(lambda: store.routes(), runs.scheduled)  # the active map's routes, asked afresh each minute
+        scheduler = Scheduler(store.routes, runs.scheduled)  # the active map's routes, asked afresh each minute
         stack.callback(scheduler.close)  # closed first: no run starts while the server stops
         scheduler.start()
         robot.runs = runs
