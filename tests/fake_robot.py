@@ -6,6 +6,8 @@ a small test database. What ROS does with a request (goals reaching move_base, v
 /cmd_vel, poses from tf) is tests/test_api.py's business, on the real robot.
 """
 
+import time
+
 from flask_move_server.drive.estop import EStop
 from flask_move_server.errors import NavigationUnavailable, NoPose
 
@@ -39,6 +41,29 @@ class FakeRobot:
             raise NavigationUnavailable("move_base does not answer on the action '/move_base'.")
         self.estop.refuse_motion("goals are")
         return self._navigation.start(goal)
+
+    def run_goto(self, goal):
+        """A run's goal (missions/executor.py): as goto, recorded as such."""
+        self.calls.append(("run_goto", goal))
+        self.estop.refuse_motion("goals are")
+        return self._navigation.start(goal)
+
+    def goal_end(self, seq, timeout):
+        """A fake goal never ends by itself: ``active`` after ``timeout``, or how stop/teleop ended it."""
+        if self._navigation.seq == seq and self._navigation.state == "active":
+            time.sleep(min(timeout, 0.05))
+            return "active", None
+        return ("canceled" if self._navigation.seq != seq else self._navigation.state), None
+
+    def halt(self):
+        self.calls.append(("halt",))
+        return self._navigation.cancel()
+
+    def refuse_motion(self, what):
+        self.estop.refuse_motion(what)
+
+    def busy_with(self):
+        return None
 
     def wait(self, seq, timeout):
         self.calls.append(("wait", seq, timeout))
@@ -79,7 +104,7 @@ class FakeRobot:
 
     def moved(self):
         """The calls that would have moved a real robot (goals and teleop)."""
-        return [call for call in self.calls if call[0] in ("goto", "teleop")]
+        return [call for call in self.calls if call[0] in ("goto", "run_goto", "teleop")]
 
     def status(self):
         return {
