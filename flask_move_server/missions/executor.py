@@ -325,26 +325,31 @@ class RunExecutor:
             if command == "cancel":
                 self._finish(run, CANCELED, "Canceled (POST /runs/{}/cancel).".format(run.id))
                 return
-            if state == "succeeded":
+            if state == "succeeded":  # reached, even if a command came as it arrived
                 run.visit()
-                self._changed(run)
             elif command == "skip":
                 run.miss("skipped (POST /runs/{}/skip)".format(run.id))
-            elif command == "pause":
-                run.state, run.message = PAUSED, "Paused at {}: resume sends it again.".format(run.target)
-                self._changed(run)
-                self._lock.notify_all()
+            elif command == "pause":  # the robot stopped short of it: resume sends it again
+                self._pause(run, "Paused at {}: resume sends it again.".format(run.target))
                 return
             else:
                 run.miss(why or "the goal ended {}".format(state))
                 if run.on_failure == "stop":
                     self._finish(run, FAILED, "Could not reach {}: {}".format(run.target, why or state))
                     return
-            self._dwell_then_advance(run, arrived=state == "succeeded" and command is None)
+            self._changed(run)
+            self._dwell_then_advance(run, dwell=state == "succeeded" and command is None, pause=command == "pause")
 
-    def _dwell_then_advance(self, run, arrived):
-        """Lock held: wait ``dwell`` s at a waypoint reached (a command cuts it short), then the next."""
-        if arrived and run.dwell > 0:
+    def _pause(self, run, message):
+        """Lock held: ``run`` waits for a resume (the worker sleeps in :meth:`_await_running`)."""
+        run.state, run.message = PAUSED, message
+        self._changed(run)
+        self._lock.notify_all()
+
+    def _dwell_then_advance(self, run, dwell, pause):
+        """Lock held: wait ``dwell`` s at a waypoint reached (a command cuts it short), then the next one;
+        with ``pause`` (or a pause while waiting), the run then waits there for a resume."""
+        if dwell and run.dwell > 0:
             self._lock.wait_for(lambda: self._command is not None or self._run is not run or self._closed,
                                 timeout=run.dwell)
             if self._run is not run:
@@ -353,15 +358,13 @@ class RunExecutor:
             if command == "cancel":
                 self._finish(run, CANCELED, "Canceled (POST /runs/{}/cancel).".format(run.id))
                 return
-            if command == "pause":  # paused while waiting: resume goes on to the next waypoint
-                run.state = PAUSED
+            pause = command == "pause"
         if not run.advance():
             self._finish(run, SUCCEEDED, _summary(run))
-            return
-        if run.state == PAUSED:
-            run.message = "Paused before {}: resume goes there.".format(run.target)
-        self._changed(run)
-        self._lock.notify_all()
+        elif pause:
+            self._pause(run, "Paused before {}: resume goes there.".format(run.target))
+        else:
+            self._changed(run)
 
     def close(self):
         """The server stops: the active run is left ``interrupted``; the worker ends. Idempotent."""
