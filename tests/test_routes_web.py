@@ -5,6 +5,8 @@ executor; the robot behind it is tests/fake_robot.py (what a run does on a real 
 tests/test_runs_sim.py's).
 """
 
+import datetime
+
 import pytest
 
 from flask_move_server.missions.executor import RunExecutor
@@ -43,14 +45,19 @@ def test_a_route_is_saved_in_the_waypoints_file_listed_and_read_back(client, rob
     r = client.put("/routes/rounds", json=ROUNDS)
     assert r.status_code == 201 and r.get_json()["created"] is True
     route = r.get_json()["route"]
+    next_run = datetime.datetime.fromisoformat(route.pop("next_run"))
     assert route == {"name": "rounds", "waypoints": ["kitchen", "office", "dock"], "loops": 2, "dwell": 5.0,
                      "on_failure": "skip", "schedule": ["mon-fri 09:00", "21:30"]}
+    now = datetime.datetime.now().astimezone()
+    assert now < next_run <= now + datetime.timedelta(days=1) and next_run.strftime("%H:%M") in ("09:00", "21:30")
+    route["next_run"] = next_run.isoformat()
     assert client.get("/routes/rounds").get_json() == route
     assert client.get("/routes").get_json() == {"routes": [route]}
     text = file_text(robot_config).decode()
     assert "routes:\n  rounds: {waypoints: [kitchen, office, dock]" in text  # saved before the answer
-    assert client.put("/routes/rounds", json={"waypoints": ["dock"]}).status_code == 200
+    assert client.put("/routes/rounds", json={"waypoints": ["dock"], "schedule": []}).status_code == 200
     assert client.get("/routes/rounds").get_json()["waypoints"] == ["dock"]
+    assert client.get("/routes/rounds").get_json()["next_run"] is None
 
 
 def test_names_in_the_owners_language(client):
@@ -146,6 +153,7 @@ def test_a_run_starts_and_is_listed_then_paused_resumed_and_canceled(client, rob
     assert [r["id"] for r in client.get("/runs").get_json()["runs"]] == [run["id"]]
     second = client.post("/runs", json={"waypoints": ["dock"]})
     assert second.status_code == 409 and second.get_json()["error"] == "run_conflict"
+    wait_for(lambda: [c[0] for c in robot.calls].count("run_goto") == 1, message="kitchen sent")
     assert client.post("/runs/{}/pause".format(run["id"])).get_json()["state"] == "paused"
     assert client.post("/runs/{}/pause".format(run["id"])).status_code == 409
     assert client.post("/runs/{}/resume".format(run["id"])).get_json()["state"] == "running"

@@ -62,6 +62,16 @@ def _if_ended(run):
     return run if run["state"] not in ("running", "paused") else None
 
 
+def under_way(sim, run_id, farther_than=0.0):
+    """Wait until the run's goal is at move_base (its distance known), more than ``farther_than`` m away."""
+    def distance():
+        current = run_of(sim, run_id)["current"] or {}
+        left = current.get("distance_remaining")
+        return left is not None and left > farther_than
+
+    wait_for(distance, timeout=30, interval=0.05, message="run {} under way".format(run_id))
+
+
 def moved(sim, seconds):
     """How far the robot moved (m) over ``seconds``."""
     a = sim.pose()
@@ -85,8 +95,7 @@ def test_a_route_of_three_with_two_loops_visits_six_in_order_and_says_so_as_even
 
 def test_pause_stops_the_robot_where_it_is_and_resume_drives_on(sim):
     run = start(sim, {"waypoints": ["b", "a"]})
-    wait_for(lambda: (run_of(sim, run["id"])["current"] or {}).get("distance_remaining") or 0 > 0.3,
-             message="on its way")
+    under_way(sim, run["id"], farther_than=0.3)
     time.sleep(0.5)
     paused = sim.post("/runs/{}/pause".format(run["id"])).json()
     assert paused["state"] == "paused"
@@ -99,20 +108,22 @@ def test_pause_stops_the_robot_where_it_is_and_resume_drives_on(sim):
 
 
 def test_skip_notes_the_waypoint_as_missed_and_goes_on(sim):
-    run = start(sim, {"waypoints": ["c", "a"]})
-    time.sleep(0.5)
+    sim.post("/goto", {"name": "a", "wait": 60}, timeout=70)
+    run = start(sim, {"waypoints": ["c", "b"]})
+    under_way(sim, run["id"])
     skipped = sim.post("/runs/{}/skip".format(run["id"])).json()
-    assert skipped["current"]["name"] == "a"
+    assert skipped["current"]["name"] == "b", skipped
     done = ended(sim, run["id"])
     assert done["state"] == "succeeded"
     assert [(m["name"], m["reason"]) for m in done["missed"]] == [("c", "skipped (POST /runs/{}/skip)".format(
         run["id"]))]
-    assert [v["name"] for v in done["visited"]] == ["a"]
+    assert [v["name"] for v in done["visited"]] == ["b"]
 
 
 def test_cancel_ends_the_run_and_the_robot_stops(sim):
     run = start(sim, {"waypoints": ["b", "c"], "loops": 0})
-    time.sleep(1.0)
+    under_way(sim, run["id"])
+    time.sleep(0.5)
     canceled = sim.post("/runs/{}/cancel".format(run["id"])).json()
     assert canceled["state"] == "canceled" and canceled["ended"]
     time.sleep(0.5)
@@ -130,7 +141,7 @@ def test_cancel_ends_the_run_and_the_robot_stops(sim):
 ])
 def test_another_command_ends_the_run_saying_which(sim, command, reason):
     run = start(sim, {"waypoints": ["a", "b"]})
-    time.sleep(0.5)
+    under_way(sim, run["id"])
     assert sim.post(*command).status_code in (200, 202)
     done = run_of(sim, run["id"])
     assert done["state"] == "canceled" and done["message"] == reason
@@ -198,7 +209,8 @@ def _two_new(sim, before):
 @pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGKILL], ids=["SIGTERM", "SIGKILL"])
 def test_a_run_cut_short_by_a_server_stop_is_interrupted_after_the_restart_and_resumes(sim, state, sig):
     run = start(sim, {"waypoints": ["c", "a"]})
-    time.sleep(1.0)
+    under_way(sim, run["id"])
+    time.sleep(0.5)
     sim.proc.send_signal(sig)
     sim.proc.wait(15)
     again = SimServer(state, waypoints_text="")

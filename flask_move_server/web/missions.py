@@ -5,9 +5,12 @@ Routes validate, call the store or the executor found in ``app.extensions["flask
 and shape the answer; they know nothing of rospy.
 """
 
+import datetime
+
 from flask import Blueprint, current_app, jsonify
 
 from flask_move_server.errors import BadRequest, RunConflict
+from flask_move_server.missions import schedule
 from flask_move_server.missions.route import FIELDS, check_route_name, make_route
 from flask_move_server.web.body import json_object, text
 from flask_move_server.web.deadline import FIELD, check_deadline
@@ -28,21 +31,30 @@ def _runs():
     return runs
 
 
+def _shown(route):
+    """A route as the API shows it: its fields, and ``next_run``, when its timetable starts it next."""
+    body = route.as_dict()
+    after = datetime.datetime.now().astimezone()
+    due = schedule.next_due([schedule.parse(entry) for entry in route.schedule], after)
+    body["next_run"] = due.isoformat(timespec="seconds") if due is not None else None
+    return body
+
+
 @missions_api.route("/routes", methods=["GET"])
 def list_routes():
-    return jsonify({"routes": [r.as_dict() for r in _extension("store").routes()]})
+    return jsonify({"routes": [_shown(r) for r in _extension("store").routes()]})
 
 
 @missions_api.route("/routes/<waypoint:name>", methods=["GET"])
 def get_route(name):
-    return jsonify(_extension("store").get_route(check_route_name(name)).as_dict())
+    return jsonify(_shown(_extension("store").get_route(check_route_name(name))))
 
 
 @missions_api.route("/routes/<waypoint:name>", methods=["PUT"])
 def put_route(name):
     route = make_route(check_route_name(name), json_object(FIELDS))
     created = _extension("store").put_route(route)
-    return jsonify({"status": "ok", "created": created, "route": route.as_dict()}), 201 if created else 200
+    return jsonify({"status": "ok", "created": created, "route": _shown(route)}), 201 if created else 200
 
 
 @missions_api.route("/routes/<waypoint:name>", methods=["DELETE"])

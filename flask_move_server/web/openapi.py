@@ -196,8 +196,9 @@ def _diagnostics():
 def _missions():
     """``/routes`` and ``/runs`` (docs/routes.md): routes of the active map, runs of them."""
     fields = _route_fields()
-    route = _object(dict(fields, name={"type": "string"}), ["name", "waypoints", "loops", "dwell", "on_failure",
-                                                             "schedule"])
+    next_run = {"type": "string", "nullable": True, "description": "when the schedule starts a run next (local time)"}
+    route = _object(dict(fields, name={"type": "string"}, next_run=next_run),
+                    ["name", "waypoints", "loops", "dwell", "on_failure", "schedule", "next_run"])
     put = _object(fields, ["waypoints"])
     unnamed = _object({k: v for k, v in fields.items() if k != "schedule"}, ["waypoints"])
     unnamed["properties"]["valid_until"] = VALID_UNTIL
