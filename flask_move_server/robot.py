@@ -85,8 +85,11 @@ class Robot:
         return self.navigator.status()
 
     def stop(self, reason=STOPPED):
-        """End the run under way (saying ``reason``), cancel the goal, end teleop, command zero velocity."""
-        self._end_run(reason)
+        """End the run under way (saying ``reason``), cancel the goal, end teleop, command zero velocity.
+
+        Never waits for a run's goal being sent: the run notices it was ended and cancels that goal itself.
+        """
+        self._end_run(reason, wait_for_send=False)
         return self.halt()
 
     def halt(self):
@@ -96,10 +99,19 @@ class Robot:
         self.drive.stop()
         return canceled
 
-    def _end_run(self, reason):
-        """Someone else commands the robot: the run under way ends ``canceled`` with ``reason``."""
+    def _end_run(self, reason, wait_for_send=True):
+        """Someone else commands the robot: the run under way ends ``canceled`` with ``reason``.
+
+        ``wait_for_send``: for a command about to send motion of its own, so that a goal the run is
+        sending goes first and is replaced, never the other way round.
+        """
         if self.runs is not None:
-            self.runs.end_by(reason)
+            self.runs.end_by(reason, wait_for_send)
+
+    def cancel_goal(self, seq):
+        """Cancel goal ``seq`` if it is still the one under way (a run's, paused or ended); zero velocity then."""
+        if self.navigator.cancel(seq):
+            self.drive.stop()
 
     def busy_with(self):
         """Why the robot is busy with something a schedule must not cut short (a goal, the joystick), or None."""

@@ -55,6 +55,10 @@ class FakeRobot:
             return "active", None
         return ("canceled" if self._navigation.seq != seq else self._navigation.state), None
 
+    def cancel_goal(self, seq):
+        if self._navigation.seq == seq:
+            self._navigation.cancel()
+
     def halt(self):
         self.calls.append(("halt",))
         return self._navigation.cancel()

@@ -9,11 +9,13 @@ the index; resume sends the current waypoint again; skip notes it as missed and 
 
 Who else commands the robot ends the run (``Robot`` calls :meth:`RunExecutor.end_by`):
 ``POST /stop``, the e-stop, a ``/goto`` and ``/teleop`` end it ``canceled`` with the reason.
-A goal is sent under :attr:`_sending`, which ``end_by`` takes too, so a ``/goto`` that ends a
-run is never overtaken by the run's next goal. One thread (``run-executor``) per active run;
+A goal is sent under ``_sending``, which ``end_by`` takes for a ``/goto`` or ``/teleop``, so their
+own command is never overtaken by the run's next goal; a stop never waits for it: the worker sees
+its run ended (or paused) and cancels a goal it had just sent itself. One thread (``run-executor``) per active run;
 every change is a ``run`` event and is written to the history. Pure: no rospy, no Flask.
 """
 
+import contextlib
 import logging
 import threading
 
@@ -125,10 +127,17 @@ class RunExecutor:
             self._begin(run)
             return run.as_dict()
 
-    def end_by(self, reason):
+    def end_by(self, reason, wait_for_send=True):
         """Someone else commands the robot (``reason`` says who): the active run ends ``canceled``.
-        Waits for a goal of the run being sent, so none follows. True when a run was ended."""
-        with self._sending, self._lock:
+
+        ``wait_for_send``: first wait for a goal of the run being sent, so that a command sending
+        its own goal comes after it (a ``/goto``); a stop does not wait: the worker cancels a goal it
+        sent once it sees its run ended. True when a run was ended.
+        """
+        with contextlib.ExitStack() as held:
+            if wait_for_send:
+                held.enter_context(self._sending)
+            held.enter_context(self._lock)
             run = self._run
             if run is None or not run.active:
                 return False
@@ -308,13 +317,18 @@ class RunExecutor:
         return ("canceled", None) if self._command is not None else None
 
     def _wait_goal(self, run, seq):
+        """``(state, why)`` of goal ``seq`` once it ends, or ``canceled`` once a command or another
+        command's end of the run came first; a goal of ours still under way then is canceled here
+        (it may have been sent just after the stop that ended the run, or the pause, was made)."""
         while True:
-            state, why = self._robot.goal_end(seq, POLL)
+            with self._lock:
+                interrupted = self._run is not run or self._command is not None
+            state, why = self._robot.goal_end(seq, 0 if interrupted else POLL)
             if state not in ("active", "canceling"):  # canceling: its end (and who ended the run) comes next
                 return state, why
-            with self._lock:
-                if self._run is not run or self._command is not None:
-                    return "canceled", why
+            if interrupted:
+                self._robot.cancel_goal(seq)
+                return "canceled", why
 
     def _after(self, run, state, why):
         """The current waypoint's goal ended in ``state``: act on a command, note it, go on or end."""

@@ -145,8 +145,9 @@ class Navigator:
                 self._ack_watch.start()
             self._cond.notify_all()
 
-    def cancel(self):
-        """Cancel the goal under way, if any; True when one was (not when its cancel is already sent).
+    def cancel(self, seq=None):
+        """Cancel the goal under way (goal ``seq`` only, when given), if any; True when one was (not when
+        its cancel is already sent).
 
         Action mode: ``canceling`` until move_base confirms (preempted or recalled);
         topic mode: ``canceled`` at once. A goal still ``canceling`` gets its cancel sent again
@@ -154,7 +155,7 @@ class Navigator:
         """
         with self._sending:
             with self._cond:
-                if self._state not in (ACTIVE, CANCELING):
+                if self._state not in (ACTIVE, CANCELING) or seq not in (None, self._seq):
                     return False
                 seq, newly = self._seq, self._state == ACTIVE
                 self._state = CANCELING if self._client is not None else CANCELED
