@@ -6,11 +6,13 @@ tests/test_runs_sim.py's).
 """
 
 import datetime
+import time
 
 import pytest
 
 from flask_move_server.missions.executor import RunExecutor
 from flask_move_server.missions.history import RunHistory
+from flask_move_server.missions.route import make_route
 from flask_move_server.web import create_app
 from tests.conftest import wait_for
 from tests.fake_robot import FakeRobot
@@ -179,3 +181,35 @@ def test_without_an_executor_runs_say_so(robot_config, robot, store):
     client = create_app(robot_config, robot, store).test_client()
     r = client.post("/runs", json={"waypoints": ["kitchen"]})
     assert r.status_code == 409 and "runs no routes" in r.get_json()["message"]
+
+
+class SlowToSend(FakeRobot):
+    """A robot whose goals take a moment to go out (a busy Wi-Fi to move_base, a loaded Pi)."""
+
+    def __init__(self):
+        super().__init__()
+        import threading
+
+        self.sending = threading.Event()
+
+    def run_goto(self, goal):
+        self.sending.set()
+        time.sleep(0.3)
+        return super().run_goto(goal)
+
+
+@pytest.mark.parametrize("command", ["pause", "stop"])
+def test_a_goal_sent_as_the_run_is_paused_or_stopped_does_not_drive(robot_config, store, tmp_path, command):
+    robot = SlowToSend()
+    runs = RunExecutor(robot, store, RunHistory(str(tmp_path / "runs.json")))
+    try:
+        run = runs.start(make_route(None, {"waypoints": ["kitchen"]}, scheduled=False))
+        robot.sending.wait(5)
+        if command == "pause":
+            assert runs.pause(run["id"])["state"] == "paused"
+        else:
+            assert runs.end_by("Stopped (POST /stop).", wait_for_send=False)
+        wait_for(lambda: robot.navigation_status()["state"] == "canceled", timeout=3,
+                 message="the goal sent during the {} canceled".format(command))
+    finally:
+        runs.close()
