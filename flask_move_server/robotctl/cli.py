@@ -19,6 +19,7 @@ from flask_move_server.goal_endings import failure_sentence, replaced_sentence
 from flask_move_server.robotctl import doctor as client_doctor
 from flask_move_server.robotctl import maps as client_maps
 from flask_move_server.robotctl import modes as client_modes
+from flask_move_server.robotctl import routes as client_routes
 from flask_move_server.robotctl.api import DEFAULT_TIMEOUT, DEFAULT_URL, ExitStatus, RobotClient, dumps, waypoint_path
 from flask_move_server.robotctl.text import (
     LiveLine,
@@ -226,6 +227,7 @@ def build_parser():
     _waypoints_parser(sub)
     client_maps.add_parser(sub, _positive)
     client_modes.add_pose_parser(sub)
+    client_routes.add_parsers(sub, _positive, _whole)
     p = sub.add_parser("teleop", help="drive at LIN m/s and ANG rad/s for the deadman time")
     p.add_argument("linear", type=_finite, metavar="LIN")
     p.add_argument("angular", type=_finite, metavar="ANG")
@@ -267,6 +269,17 @@ def _positive(text):
     value = _finite(text)
     if value <= 0:
         raise argparse.ArgumentTypeError("{!r} must be greater than 0".format(text))
+    return value
+
+
+def _whole(text):
+    """A whole number from 1 (a run's id, a count)."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError("{!r} is not a whole number".format(text))
+    if value < 1:
+        raise argparse.ArgumentTypeError("{!r} must be 1 or more".format(text))
     return value
 
 

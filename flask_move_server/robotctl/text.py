@@ -25,14 +25,16 @@ class LiveLine:
         self._tty = stream.isatty()
         self._last = None
 
-    def show(self, text):
-        """Show ``text``: in place on a terminal; as a new line when the state changed otherwise."""
+    def show(self, text, key=None):
+        """Show ``text``: in place on a terminal; otherwise as a new line when ``key`` changed (by default
+        the text before its first comma, the state)."""
+        key = text.split(",")[0] if key is None else key
         if self._tty:
             self._stream.write("\r\033[K" + text)
-        elif text.split(",")[0] != (self._last or "").split(",")[0]:
+        elif self._last is None or key != self._last:
             self._stream.write(text + "\n")
         self._stream.flush()
-        self._last = text
+        self._last = key
 
     def end(self):
         """Finish the line (before anything else is printed)."""
