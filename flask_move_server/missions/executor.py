@@ -117,7 +117,6 @@ class RunExecutor:
                 self._robot.refuse_motion("runs are")
                 run.state, run.message, self._command = RUNNING, None, None
                 self._changed(run)
-                self._lock.notify_all()
                 return run.as_dict()
             if run.state != INTERRUPTED:
                 raise RunConflict("Run {} is {}: only a paused or interrupted run can be resumed.".format(
@@ -263,11 +262,11 @@ class RunExecutor:
         if self._run is run:
             self._run, self._command = None, None
         self._changed(run)
-        self._lock.notify_all()
         log.info("run %d: %s%s", run.id, state, " ({})".format(message) if message else "")
 
     def _changed(self, run):
-        """Lock held: write the runs soon and tell ``GET /events``."""
+        """Lock held: write the runs soon, tell ``GET /events``, and wake whoever waits on the run."""
+        self._lock.notify_all()
         self._history.changed()
         if self._events is not None:
             self._events.publish("run", self._shown(run))
@@ -358,7 +357,6 @@ class RunExecutor:
         """Lock held: ``run`` waits for a resume (the worker sleeps in :meth:`_await_running`)."""
         run.state, run.message = PAUSED, message
         self._changed(run)
-        self._lock.notify_all()
 
     def _dwell_then_advance(self, run, dwell, pause):
         """Lock held: wait ``dwell`` s at a waypoint reached (a command cuts it short), then the next one;
