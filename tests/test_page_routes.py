@@ -143,6 +143,9 @@ def test_a_run_event_moves_the_strip_on_and_cancel_ends_the_run(sim, page):
     before = page.inner_text("#run-where")
     assert sim.post("/runs/{}/skip".format(run["id"])).status_code == 200  # not from this page: only its event
     page.wait_for_function("(b) => document.getElementById('run-where').textContent !== b", arg=before)
+    if sim.get("/runs/{}".format(run["id"])).json()["loop"] == 1:  # the stop skipped is in the loop drawn
+        page.wait_for_function("JSON.parse(document.getElementById('map').dataset.route)"
+                               ".some((s) => s.state === 'missed')")
     page.locator("#run-cancel").tap()
     page.wait_for_selector("#run", state="hidden")
     assert sim.get("/runs/{}".format(run["id"])).json()["state"] == "canceled"
@@ -194,6 +197,36 @@ def test_edit_and_delete_a_route(sim, page):
     page.locator('#routes li[data-name="evening"] button', has_text="Delete").tap()
     page.wait_for_selector('#routes li[data-name="evening"]', state="detached")
     assert sim.get("/routes").json() == {"routes": []} and page.asked[-1].startswith("Delete the route evening?")
+
+
+RESULTS = [  # a run as GET /runs shows it, and how the Last runs list says it ended
+    ({"state": "succeeded", "missed": []}, "done"),
+    ({"state": "succeeded", "missed": [{"name": "office", "loop": 1, "reason": "skipped (POST /runs/4/skip)"}]},
+     "done, but skipped office"),
+    ({"state": "failed", "missed": [{"name": "office", "loop": 1, "reason": "No path to the goal."}],
+      "message": "Could not reach office: No path to the goal."}, "missed office: no path to the goal"),
+    ({"state": "canceled", "message": "Stopped (POST /stop)."}, "stopped: STOP was pressed"),
+    ({"state": "canceled", "message": "The e-stop was engaged (its button)."},
+     "stopped: the e-stop button was pressed"),
+    ({"state": "canceled", "message": "A goal to kitchen (POST /goto) took the robot elsewhere."},
+     "stopped: the robot was sent to kitchen"),
+    ({"state": "canceled", "message": "Driven by joystick (POST /teleop)."},
+     "stopped: the robot was driven with the joystick"),
+    ({"state": "canceled", "message": "Canceled (POST /runs/4/cancel)."}, "cancelled"),
+    ({"state": "skipped", "message": "Not run at its scheduled time: The robot was on its way to kitchen.",
+      "started": "2030-01-01T21:30:00"}, "skipped at 21:30: the robot was on its way to kitchen"),
+    ({"state": "interrupted", "message": "The server stopped while this run was under way; resume it to go on."},
+     "interrupted: the robot's server stopped under it"),
+]
+
+
+def test_how_runs_ended_is_said_in_words(page):
+    runs = [dict({"missed": [], "message": None, "started": None}, **run) for run, _ in RESULTS]
+    said = page.evaluate("(runs) => import('/static/js/runwords.js').then((w) => runs.map(w.runResult))", runs)
+    # the time as this browser shows times: 21:30 in its locale's own way, and its weekday (not today)
+    said[-2] = said[-2].replace(page.evaluate("() => import('/static/js/runwords.js').then((w) => "
+                                              "w.clock('2030-01-01T21:30:00'))"), "21:30")
+    assert said == [words for _, words in RESULTS]
 
 
 @pytest.mark.parametrize("device,name", [(LANDSCAPE, "phone-routes-landscape"), (DESKTOP, "desktop-routes")])
