@@ -13,6 +13,8 @@ import {initOverlays} from "./overlays.js";
 import {initDriveSpeed} from "./drivespeed.js";
 import {initHome} from "./home.js";
 import {initWhereabouts, showWhereabouts, noMapInUse} from "./whereabouts.js";
+import {initRoutes, loadRoutes, showPastRuns} from "./routes.js";
+import {initRunStrip, loadRuns, tellRun} from "./runstrip.js";
 
 const $ = (id) => document.getElementById(id);
 const map = new MapView($("map"), {overlays: [$("gesture")]});
@@ -43,6 +45,16 @@ export function sendGoal(where) {
   }
   stopping.cancel();
   return call("POST", "/goto", Object.assign({}, where, within(GOAL_WINDOW_S)), "goal");
+}
+/** Start a run (`/runs` with `body`), resume or skip one (`path` alone): they send the robot on, so
+ *  they are refused while the e-stop is latched and end STOP's retries, as a goal does. */
+function move(path, body) {
+  if (latched()) {
+    report({code: "estop_latched"});
+    return Promise.reject(new Error("e-stop latched"));
+  }
+  stopping.cancel();
+  return call("POST", path, body && Object.assign({}, body, within(GOAL_WINDOW_S)), "run");
 }
 const quietly = (promise) => promise.catch(() => {});
 const buzz = () => { if (navigator.vibrate) navigator.vibrate(30); };  // a felt "sent" on phones that can
@@ -135,6 +147,7 @@ map.onPress = (mode, x, y, yaw) => {
 const round = (v) => Math.round(v * 1000) / 1000;
 map.onTap = (mode) => {
   if (mode === "look") return;
+  if (mode === "route") { flashHint("Tap a place's dot to add it to the route."); return; }
   const what = {go: "send the robot there", pose: "say where the robot is", mark: "mark a place"}[mode];
   flashHint("Press and drag to " + what + ": the drag sets the heading.");
 };
@@ -151,6 +164,7 @@ const HINTS = {
   pose: "Press where the robot really is, drag the way it faces.",
   mark: "Press a place, drag the way it should face, then name it.",
   look: "Drag to move the map; pinch or two fingers to zoom.",
+  route: "Tap places in the order to visit them.",
 };
 
 export function setGesture(mode) {
@@ -211,6 +225,8 @@ function resync() {
   quietly(loadWaypoints());
   quietly(loadMap());
   quietly(loadMaps());
+  quietly(loadRoutes());
+  quietly(loadRuns());
 }
 
 live.onState = showConnection;
@@ -220,7 +236,8 @@ setInterval(showStaleNote, 500);  // a pose that stops coming greys the robot wi
 live.on("status", showStatus);
 live.on("estop", showEstop);
 live.on("plan", (p) => map.setPlan(p.poses));
-live.on("waypoints", () => quietly(loadWaypoints()));
+live.on("waypoints", () => { quietly(loadWaypoints()); quietly(loadRoutes()); });  // routes live in the waypoints file
+live.on("run", tellRun);
 live.on("map", (m) => { if (m.version !== mapVersion) quietly(loadMap()); });
 live.on("mode", (m) => { showModes(m); quietly(loadMaps()); quietly(loadMap()); });
 
@@ -272,6 +289,8 @@ initOverlays({live, map});
 initDriveSpeed({live, joystick, keys});
 initHome({sendGoal, map, report});
 initWhereabouts({call, setGesture});
+initRunStrip({call, move, map, onRuns: showPastRuns});
+initRoutes({call, move, isLive, map, setGesture});
 setGesture("go");
 showConnection("connecting");
 live.start();

@@ -1,5 +1,7 @@
 // Drawing the map view: the map image (or a metre grid without one), the plan, the goal, the
-// waypoints, the robot and the arrow being dragged. Pure drawing: what to draw is the view's state.
+// waypoints, a route (routedraw.js), the robot and the arrow being dragged. Pure drawing: what to draw
+// is the view's state.
+import {drawRoute} from "./routedraw.js";
 
 export const TAP_PX = 10;  // a press that moves less than this is a tap, not a drag (no arrow drawn)
 
@@ -13,7 +15,7 @@ export function drawMap(v) {
   drawPlan(v, ctx);
   drawScan(v, ctx);
   if (v.goal) drawArrow(v, ctx, v.goal.x, v.goal.y, v.goal.yaw, "#c2185b", 16);
-  drawWaypoints(v, ctx);
+  drawWaypoints(v, ctx, drawRoute(v, ctx));
   if (v.drawn && v.robot) {
     const colour = v.robotStale() ? "#757575" : "#ff6d00";
     drawArrow(v, ctx, v.drawn.x, v.drawn.y, v.drawn.yaw, colour, 20);
@@ -91,10 +93,11 @@ function drawScan(v, ctx) {
   ctx.fill();
 }
 
-function drawWaypoints(v, ctx) {
+/** The places, their names placed clear of `taken` (boxes already drawn: a route's badges) and of each other. */
+function drawWaypoints(v, ctx, taken) {
   const spots = v.waypoints.map((w) => ({w, at: v.toScreen(w.x, w.y)}));
   for (const s of spots) drawMarker(ctx, s.at, s.w.yaw);
-  const taken = spots.flatMap((s) => markerBoxes(s.at, s.w.yaw));
+  taken.push(...spots.flatMap((s) => markerBoxes(s.at, s.w.yaw)));
   if (v.drawn && v.robot) taken.push(around(v.toScreen(v.drawn.x, v.drawn.y), 21));
   ctx.font = LABEL_FONT;
   ctx.textAlign = "left";

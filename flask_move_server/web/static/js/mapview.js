@@ -37,13 +37,16 @@ export class MapView {
     this.scanSeen = 0;           // scans received, for the tests
     this.showScan = true;
     this.trail = [];             // where the robot went [[x, y] or null (a jump), ...], oldest first
-    this.mode = "go";            // what a one-finger press does: go | pose | mark | look
+    this.draft = null;           // a route being made [{name, state}] in order, shown before a run's
+    this.runStops = null;        // the run under way's stops [{name, state}]: its progress
+    this.mode = "go";            // what a one-finger press does: go | pose | mark | look | route (tap places, pan)
     this.pointers = new Map();
     this.gesture = null;
     this.onPress = () => {};     // (mode, x, y, yaw) from a drag or a tap on the map
     this.onWaypoint = () => {};  // (name) from a tapped marker
     this.onTap = () => {};       // (mode) a tap on no marker
     this.onWaypoints = () => {}; // (list) the waypoints shown changed
+    this.onRouteStop = () => {}; // (name) a place tapped while making a route
     this.listen();
     new ResizeObserver(() => this.resize()).observe(canvas);
     this.resize();
@@ -96,9 +99,12 @@ export class MapView {
   /** The scan as drawn now: none while hidden or while the robot is not connected (it would be old). */
   scanShown() { return this.showScan && !this.offline ? this.scan : []; }
   setGoal(goal) { this.goal = goal; }
+  /** The route drawn: the one being made, else the run under way's progress, else none. */
+  routeShown() { return this.draft || this.runStops || []; }
   setWaypoints(list) {
     this.waypoints = list;
     this.onWaypoints(list);
+    this.canvas.dispatchEvent(new CustomEvent("waypoints"));  // for more than one listener (the route editor)
     if (!this.meta && !this.userMoved) this.fit();
   }
 
@@ -248,7 +254,7 @@ export class MapView {
       this.view = {scale, ox: mid[0] - wx * scale, oy: mid[1] + wy * scale};
     } else if (g.kind === "press") {
       g.now = this.local(e);
-      if (this.mode === "look") {
+      if (this.mode === "look" || this.mode === "route") {
         this.view.ox = g.view.ox + g.now[0] - g.start[0];
         this.view.oy = g.view.oy + g.now[1] - g.start[1];
         if (distance(g.start, g.now) > TAP_PX) { this.follow = false; this.userMoved = true; }
@@ -267,16 +273,18 @@ export class MapView {
     this.gesture = null;
     if (cancelled || this.mode === "look") return;
     if (distance(g.start, g.now) < TAP_PX) { this.tap(g.start); return; }
+    if (this.mode === "route") return;  // a drag while making a route pans
     const [x, y] = this.toWorld(g.start[0], g.start[1]);
     const yaw = Math.atan2(-(g.now[1] - g.start[1]), g.now[0] - g.start[0]);
     this.onPress(this.mode, x, y, yaw);
   }
 
-  /** A tap picks a waypoint in Go mode; anywhere else it only says how to send the robot (a stray
-   *  touch while looking at the map must not move a robot). */
+  /** A tap picks a waypoint in Go mode (or adds it to a route being made); anywhere else it only
+   *  says how to send the robot (a stray touch while looking at the map must not move a robot). */
   tap(point) {
     const hit = this.waypointAt(point);
     if (hit && this.mode === "go") { this.onWaypoint(hit.name); return; }
+    if (hit && this.mode === "route") { this.onRouteStop(hit.name); return; }
     this.onTap(this.mode);
   }
 
@@ -332,6 +340,7 @@ export class MapView {
     set(ds, "labels", JSON.stringify(this.labels.map((l) => ({name: l.name, text: l.text, box: l.box.map(Math.round)}))));
     set(ds, "scanPoints", String(this.scanShown().length));
     set(ds, "scanSeen", String(this.scanSeen));
+    set(ds, "route", JSON.stringify(this.routeShown()));
     set(ds, "trailPoints", String(this.trail.filter(Boolean).length));
   }
 }

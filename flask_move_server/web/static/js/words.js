@@ -13,6 +13,7 @@ const WORDS = {
     goal: "No map in use, so the robot cannot go anywhere: Maps → Use a map (or Start mapping).",
     pose: "The position can be set only when navigating on a saved map: Maps → Use a map.",
     save: "Saving needs a map being made: Maps → Start mapping first.",
+    run: "Routes run only while navigating on a map: Maps → Use a map.",
   }[what] || "The robot is not in the right mode for this: see Maps."),
   move_base_unavailable: () => "The robot's navigation is not ready yet: wait until the top bar stops saying starting.",
   ros_unavailable: () => "The robot's ROS is not running yet: wait a moment (or see Health).",
@@ -24,7 +25,25 @@ const WORDS = {
   shutting_down: () => "The robot's server is stopping: try again once it is back.",
   too_many_streams: () => "Too many pages are open on this robot: close one on another phone or tab.",
   unknown_waypoint: (e) => e.message.replace(/\s*GET \/waypoints lists the known names\.?/, ""),
+  run_conflict: (e) => /^Run \d+ \(/.test(e.message) ?  // "Run 3 (rounds) is running: cancel it first"
+    "Another route is running: press Cancel on its strip at the top first, or wait until it ends." :
+    "The route has moved on meanwhile (it ended, or is no longer paused): see its strip.",
+  unknown_run: () => "That run of a route is no longer kept on the robot.",
+  unknown_route: () => "That route is gone (deleted on another phone?).",
+  bad_route: (e) => withoutApi(e.message).replace(/Field '(\w+)'/g, (all, f) => ROUTE_FIELDS[f] || f)
+    .replace(/\bwaypoints?\b/g, (w) => w.replace("waypoint", "place")),
+  waypoint_in_use: (e) => unquoted(e.message)
+    .replace(/^The waypoint (.*) is used by (.*): change or delete (it|them) first\.?$/,
+      (all, place, routes, it) => "The place " + place + " is a stop of " + routes + ": take it out (Routes → Edit) " +
+        "or delete " + (it === "it" ? "the route" : "those routes") + " first."),
 };
+
+// A route's fields as the Routes panel labels them (the server names the JSON field).
+const ROUTE_FIELDS = {waypoints: "The stops", loops: "Loops", dwell: "Wait at each place", on_failure: "If a place " +
+  "cannot be reached", schedule: "Runs by itself at"};
+
+/** A server sentence with its JSON-quoted names shown as typed: "sofa", not \"sofa\". */
+const unquoted = (text) => text.replace(/"((?:[^"\\]|\\.)*)"/g, (all, name) => name.replace(/\\(.)/g, "$1"));
 
 /** The sentence to show for `error` (an ApiError, or any Error); `what` says what was tried. */
 export function words(error, what) {
