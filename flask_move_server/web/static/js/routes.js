@@ -38,12 +38,13 @@ function routeRow(r) {
   return li;
 }
 
-/** "sofa → dock → office", then "twice · waits 10 s · at 21:30, mon-fri 09:00". */
+/** "sofa → dock → office", then "twice · waits 10 s · at 21:30, mon-fri 09:00 · next Mon 09:00". */
 function routeNote(r) {
   const loops = r.loops === 0 ? "until stopped" : r.loops === 1 ? "once" : r.loops === 2 ? "twice" : r.loops + " times";
   const wait = r.dwell ? "waits " + r.dwell + " s" : "";
   const at = r.schedule.length ? "at " + r.schedule.join(", ") : "";
-  return r.waypoints.join(" → ") + "\n" + [loops, wait, at].filter(Boolean).join(" · ");
+  const next = r.next_run ? "next " + clock(r.next_run) : "";
+  return r.waypoints.join(" → ") + "\n" + [loops, wait, at, next].filter(Boolean).join(" · ");
 }
 
 function about(title, note) {
