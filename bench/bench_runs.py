@@ -15,8 +15,9 @@ last goal succeeded. Two histories: ``runs.json`` empty, and full (the 50 runs k
 100 newest visits, as after weeks of patrols): every change of a run serializes the kept runs.
 
 Run: ``.venv/bin/python bench/bench_runs.py [--loops N] [--waypoints N] [--succeed-after S]
-[--repeat N] [--profile FILE]`` (``--profile``: py-spy's raw stacks of the server during the
-measured runs). Starts its own ROS master. Prints one markdown table.
+[--repeat N] [--compare DIR] [--profile FILE]`` (``--compare``: also the server of another checkout,
+``git archive REV | tar -x -C DIR``, in turns with this one; ``--profile``: py-spy's raw stacks of the
+server during the measured runs). Starts its own ROS master. Prints one markdown table.
 """
 
 import argparse
@@ -125,7 +126,9 @@ def drive_run(server, standin, route, goals, timeout):
 
 
 def measure(history, opts, env, standin):
-    """(legs ms, server CPU ms per leg) of one measured run, on a server of its own with ``history``."""
+    """(legs ms, server CPU ms per leg) of one measured run, on a server of its own with ``history``.
+
+    The server is this checkout's, or the one ``env``'s PYTHONPATH names first."""
     home = tempfile.mkdtemp(prefix="bench-runs-")
     names = waypoints_file(os.path.join(home, "waypoints.yaml"), opts.waypoints, opts.loops)
     if history == "full":
@@ -157,13 +160,15 @@ def main(argv=None):
     parser.add_argument("--succeed-after", type=float, default=0.02,
                         help="s after its arrival the stand-in succeeds each goal")
     parser.add_argument("--repeat", type=int, default=1, help="measured runs per history, alternating")
+    parser.add_argument("--compare", metavar="DIR", help="also measure the server of another checkout")
     parser.add_argument("--profile", metavar="FILE", help="py-spy's raw stacks of the server, FILE.empty / FILE.full")
     opts = parser.parse_args(argv)
 
     home = tempfile.mkdtemp(prefix="bench-runs-ros-")
     port = free_port()
-    env = dict(os.environ, ROS_MASTER_URI="http://127.0.0.1:{}".format(port), ROS_HOME=home, ROS_IP="127.0.0.1",
-               PYTHONPATH=os.pathsep.join(filter(None, [ROOT, os.environ.get("PYTHONPATH")])))  # this checkout's server
+    env = dict(os.environ, ROS_MASTER_URI="http://127.0.0.1:{}".format(port), ROS_HOME=home, ROS_IP="127.0.0.1")
+    checkouts = [("this checkout", ROOT)] + ([(os.path.basename(opts.compare.rstrip("/")), opts.compare)]
+                                             if opts.compare else [])
     master = start_master(port, env)
     standin = None
     rows = []
@@ -171,20 +176,22 @@ def main(argv=None):
         standin = StandIn(env, opts.succeed_after)
         for i in range(opts.repeat):
             for history in ("empty", "full"):
-                found, cpu = measure(history, opts, env, standin)
-                rows.append((history, i + 1, found, cpu))
+                for name, root in checkouts:  # the server of that checkout, not the venv's editable install
+                    ours = dict(env, PYTHONPATH=os.pathsep.join(filter(None, [root, os.environ.get("PYTHONPATH")])))
+                    found, cpu = measure(history, opts, ours, standin)
+                    rows.append((name, history, i + 1, found, cpu))
     finally:
         if standin is not None:
             stop_process(standin.proc)
         stop_process(master)
-    print("| goal succeeded → next goal at move_base ({} stops × {} loops, dwell 0) | run | legs | p50 ms | p90 ms "
-          "| p99 ms | max ms | server CPU per leg ms |".format(opts.waypoints, opts.loops))
-    print("|---|---:|---:|---:|---:|---:|---:|---:|")
-    for history, run, found, cpu in rows:
-        label = "history empty" if history == "empty" else "history full ({} runs × {} visits kept)".format(
+    print("| goal succeeded → next goal at move_base ({} stops × {} loops, dwell 0) | server | run | legs | p50 ms "
+          "| p90 ms | p99 ms | max ms | server CPU per leg ms |".format(opts.waypoints, opts.loops))
+    print("|---|---|---:|---:|---:|---:|---:|---:|---:|")
+    for name, history, run, found, cpu in rows:
+        label = "runs.json empty" if history == "empty" else "runs.json full ({} runs × {} visits kept)".format(
             KEPT_RUNS, KEPT_VISITS)
-        print("| {} | {} | {} | {:.2f} | {:.2f} | {:.2f} | {:.2f} | {:.2f} |".format(
-            label, run, len(found), percentile(found, 50), percentile(found, 90), percentile(found, 99),
+        print("| {} | {} | {} | {} | {:.2f} | {:.2f} | {:.2f} | {:.2f} | {:.2f} |".format(
+            label, name, run, len(found), percentile(found, 50), percentile(found, 90), percentile(found, 99),
             max(found), cpu))
 
 
