@@ -20,6 +20,8 @@ BENCHMARKS = [
     ("server", "bench_server.py", ["--seconds", "2", "--idle", "3"]),
     ("concurrency", "bench_concurrency.py", ["--seconds", "2", "--clients", "1,8"]),
     ("goals", "bench_goals.py", ["--goals", "30", "--burst", "100", "--stages"]),
+    ("runs", "bench_runs.py", ["--loops", "30"]),
+    ("schedules", "bench_schedules.py", ["--seconds", "10", "--repeat", "2", "--settle", "3"]),
     ("teleop", "bench_teleop.py", ["--requests", "100", "--seconds", "4"]),
     ("maps", "bench_maps.py", ["--repeat", "3"]),
     ("slam", "bench_slam.py", []),

@@ -6,6 +6,10 @@ under way, feedback comes at 10 Hz while a goal drives, a goal not replaced succ
 ``--drive`` s, and the status array goes out at actionlib's 5 Hz and on every change. Every goal's
 arrival is printed on stdout as ``goal <action> <x> <time.monotonic()>`` (one clock for every
 process on Linux), so the bench can time it from the moment its HTTP client sent the request.
+
+``--succeed-after S`` (bench_runs.py): each goal succeeds exactly ``S`` s after it arrived (a timer
+of its own, not the 10 Hz tick), and the moment just before its success is sent is printed as
+``succeeded <action> <x> <time.monotonic()>``, so a run's next goal can be timed from it.
 """
 
 import argparse
@@ -21,9 +25,10 @@ from move_base_msgs.msg import MoveBaseAction, MoveBaseFeedback, MoveBaseResult
 class MoveBase:
     """One action namespace: the goal driving now, preempted by the next."""
 
-    def __init__(self, action, drive):
+    def __init__(self, action, drive, succeed_after=None):
         self.action = action
-        self.drive = drive
+        self.drive = drive if succeed_after is None else float("inf")  # the timer succeeds it, not tick()
+        self.succeed_after = succeed_after
         self._lock = threading.Lock()
         self._current = None  # (goal handle, time it arrived)
         self._server = actionlib.ActionServer(action, MoveBaseAction, self._on_goal, self._on_cancel,
@@ -40,6 +45,21 @@ class MoveBase:
         if previous is not None:
             previous[0].set_canceled(MoveBaseResult(), "preempted by a new goal")
         handle.set_accepted()
+        if self.succeed_after is not None:
+            timer = threading.Timer(self.succeed_after, self._succeed, (handle, x))
+            timer.daemon = True
+            timer.start()
+
+    def _succeed(self, handle, x):
+        """``--succeed-after``: the goal (if still the current one) succeeds; the moment is printed."""
+        with self._lock:
+            if self._current is None or self._current[0] != handle:
+                return
+            self._current = None
+        sent = time.monotonic()
+        handle.set_succeeded(MoveBaseResult())
+        sys.stdout.write("succeeded {} {!r} {!r}\n".format(self.action, x, sent))
+        sys.stdout.flush()
 
     def _on_cancel(self, handle):
         with self._lock:
@@ -68,9 +88,10 @@ def main():
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--action", action="append", default=[], help="action namespace (repeatable)")
     parser.add_argument("--drive", type=float, default=2.0, help="s a goal drives before it succeeds")
+    parser.add_argument("--succeed-after", type=float, help="s after its arrival each goal succeeds (own timer)")
     opts = parser.parse_args()
     rospy.init_node("move_base_standin", disable_signals=True)
-    servers = [MoveBase(action, opts.drive) for action in opts.action or ["move_base"]]
+    servers = [MoveBase(action, opts.drive, opts.succeed_after) for action in opts.action or ["move_base"]]
     sys.stdout.write("ready\n")
     sys.stdout.flush()
     while not rospy.is_shutdown():
