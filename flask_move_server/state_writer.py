@@ -4,12 +4,16 @@ The trip under way (``trip.json``) and the runs (``runs.json``) change while the
 commanded; an SD card's fsync can take tens of milliseconds, and a request or the run executor
 must never wait for one. :class:`StateWriter` takes the newest text (or a removal) and writes it
 atomically (the waypoints file's plumbing) from its thread; a wish replaced before it was written
-is never written. A crash loses at most the last moment's note, never a command. Pure: no rospy.
+is never written. A crash loses at most the last moment's note, never a command. Wishes that are
+not urgent (a run's progress) are written at most once per ``min_interval``: a patrol must not
+rewrite the file twice a waypoint for months on an SD card. Pure: no rospy.
 """
 
 import logging
+import math
 import os
 import threading
+import time
 
 from flask_move_server.errors import WaypointFileError
 from flask_move_server.waypoints import locked_file
@@ -20,35 +24,53 @@ log = logging.getLogger(__name__)
 class StateWriter:
     """``write(text)`` / ``remove()`` ``path`` soon, newest first; ``close()`` writes what is pending."""
 
-    def __init__(self, path, what, thread_name):
+    def __init__(self, path, what, thread_name, min_interval=0.0):
         self.path = path
         self._what = what  # for the log: "the trip under way"
+        self.min_interval = min_interval  # s between writes of wishes that are not urgent (an SD card's wear)
         self._cond = threading.Condition()
         self._wish = None  # ("write", text) or ("remove", None): the newest state to put on disk
+        self._urgent = False
+        self._last = -math.inf  # time.monotonic() of the last write
         self._closed = False
         self._thread = threading.Thread(target=self._run, name=thread_name, daemon=True)
         self._thread.start()
 
-    def write(self, text):
-        self._want("write", text)
+    def write(self, text, urgent=True):
+        """Put ``text`` on disk soon; not ``urgent``: at most once per :attr:`min_interval`, the newest then."""
+        self._want("write", text, urgent)
 
     def remove(self):
-        self._want("remove", None)
+        self._want("remove", None, True)
 
-    def _want(self, what, text):
+    def _want(self, what, text, urgent):
         with self._cond:
             self._wish = (what, text)
+            self._urgent = self._urgent or urgent
             self._cond.notify()
 
     def _run(self):
         while True:
             with self._cond:
-                while self._wish is None and not self._closed:
-                    self._cond.wait()
-                wish, self._wish = self._wish, None
+                wish = self._next_wish()
             if wish is None:
                 return
             self._apply(*wish)
+            self._last = time.monotonic()
+
+    def _next_wish(self):
+        """Lock held: the next wish to write (urgent: at once; else once ``min_interval`` passed); None once closed."""
+        while True:
+            if self._wish is None:
+                if self._closed:
+                    return None
+                self._cond.wait()
+                continue
+            hold = self._last + self.min_interval - time.monotonic()
+            if self._urgent or self._closed or hold <= 0:
+                wish, self._wish, self._urgent = self._wish, None, False
+                return wish
+            self._cond.wait(hold)
 
     def _apply(self, what, text):
         try:

@@ -1,10 +1,12 @@
 """runs.json: what RunHistory writes is the kept runs as JSON, newest first, whatever it reuses to make it."""
 
 import json
+import time
 
 from flask_move_server.missions.history import RunHistory
-from flask_move_server.missions.route import Route
+from flask_move_server.missions.route import Route, make_route
 from flask_move_server.missions.run import FAILED, SUCCEEDED, Run
+from tests.conftest import wait_for
 
 
 def written(history):
@@ -44,3 +46,33 @@ def test_runs_beyond_the_kept_ones_leave_the_file(tmp_path):
         history.changed()
         runs.append(run)
     assert json.loads(written(history)) == [runs[2].as_dict(), runs[1].as_dict()]
+
+
+def test_progress_is_written_at_most_once_per_interval_and_state_changes_at_once(tmp_path, monkeypatch):
+    """A patrol reaching a waypoint every few seconds for months must not rewrite runs.json twice a stop
+    (an SD card's wear); a start, a pause or an end is on disk at once."""
+    from flask_move_server.waypoints import locked_file
+
+    writes = []
+    real = locked_file.atomic_write
+    monkeypatch.setattr(locked_file, "atomic_write", lambda path, text, **kw: (writes.append(text),
+                                                                                real(path, text, **kw)))
+    history = RunHistory(str(tmp_path / "runs.json"))
+    history._writer.min_interval = 0.5
+    try:
+        run = Run.of_route(1, make_route(None, {"waypoints": ["a", "b"], "loops": 0}, scheduled=False), "api")
+        history.add(run)
+        wait_for(lambda: len(writes) == 1, message="the start written at once")
+        for _ in range(20):  # twenty waypoints reached in quick succession
+            run.visit()
+            run.advance()
+            history.changed(progress=True)
+        time.sleep(0.2)
+        assert len(writes) == 1  # none of them yet: within the interval
+        wait_for(lambda: len(writes) == 2, timeout=2, message="the newest progress once the interval passed")
+        assert json.loads(writes[-1])[0]["loop"] == 11
+        run.end("canceled", "Stopped (POST /stop).")
+        history.changed()
+        wait_for(lambda: len(writes) == 3, timeout=0.3, message="the end written at once")
+    finally:
+        history.close()

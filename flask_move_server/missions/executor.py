@@ -264,10 +264,11 @@ class RunExecutor:
         self._changed(run)
         log.info("run %d: %s%s", run.id, state, " ({})".format(message) if message else "")
 
-    def _changed(self, run):
-        """Lock held: write the runs soon, tell ``GET /events``, and wake whoever waits on the run."""
+    def _changed(self, run, progress=False):
+        """Lock held: write the runs soon (``progress``: only where it is, written less often), tell
+        ``GET /events``, and wake whoever waits on the run."""
         self._lock.notify_all()
-        self._history.changed()
+        self._history.changed(progress)
         if self._events is not None:
             self._events.publish("run", self._shown(run))
 
@@ -350,7 +351,7 @@ class RunExecutor:
                 if run.on_failure == "stop":
                     self._finish(run, FAILED, "Could not reach {}: {}".format(run.target, why or state))
                     return
-            self._changed(run)
+            self._changed(run, progress=True)
             self._dwell_then_advance(run, dwell=state == "succeeded" and command is None, pause=command == "pause")
 
     def _pause(self, run, message):
@@ -376,7 +377,7 @@ class RunExecutor:
         elif pause:
             self._pause(run, "Paused before {}: resume goes there.".format(run.target))
         else:
-            self._changed(run)
+            self._changed(run, progress=True)
 
     def close(self):
         """The server stops: the active run is left ``interrupted``; the worker ends. Idempotent."""

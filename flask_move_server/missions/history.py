@@ -19,6 +19,7 @@ from flask_move_server.waypoints import locked_file
 log = logging.getLogger(__name__)
 
 KEPT = 50
+PROGRESS_WRITES = 10.0  # s: a run's progress (a waypoint reached) is written at most this often; states at once
 ENDED = (SUCCEEDED, FAILED, CANCELED, SKIPPED)  # a run in one of these never changes again
 CUT_SHORT = "The server stopped while this run was under way (at {}, loop {}); resume it to go on from there."
 
@@ -32,7 +33,7 @@ class RunHistory:
         self._runs = self._load()
         self._texts = {}  # run id -> its JSON, for the ended runs (each made once, not at every change)
         self.next_id = max((r.id for r in self._runs), default=0) + 1
-        self._writer = StateWriter(path, "the runs", "run-history")
+        self._writer = StateWriter(path, "the runs", "run-history", min_interval=PROGRESS_WRITES)
         if any(r.state == INTERRUPTED for r in self._runs):
             self.changed()
 
@@ -57,9 +58,13 @@ class RunHistory:
         self.next_id = max(self.next_id, run.id + 1)
         self.changed()
 
-    def changed(self):
-        """A kept run changed: write the list soon (the same text as ``json.dumps`` of the list)."""
-        self._writer.write("[" + ", ".join(self._text(r) for r in self._runs) + "]\n")
+    def changed(self, progress=False):
+        """A kept run changed: write the list soon (the same text as ``json.dumps`` of the list).
+
+        ``progress``: only where a run is (a waypoint reached, the next one chosen), written within
+        :data:`PROGRESS_WRITES` s; a crash meanwhile resumes the run a waypoint or two early.
+        """
+        self._writer.write("[" + ", ".join(self._text(r) for r in self._runs) + "]\n", urgent=not progress)
 
     def _text(self, run):
         """``run`` as JSON: an ended run's is made once (50 patrols of 100 visits: ~10 ms each time)."""
