@@ -211,17 +211,34 @@ def our_server(n, tmp, rosbridge=None):
     backend = SimBackend(cfg.drive)
     drive = make_drive(cfg.drive, node, cfg.ros.frames, backend=backend)
     robot = cli.build_robot(cfg, node, drive)
-    app = create_app(cfg, robot, WaypointStore(cfg.waypoints.file))
+    store = WaypointStore(cfg.waypoints.file)
+    runs = _run_executor(robot, store, tmp)
+    app = create_app(cfg, robot, store, runs=runs)
     arrivals = Arrivals("bench/cmd_vel")
     cfg.server.port = 0
     with serving(app, cfg.server) as url:
         time.sleep(1.0)  # let the subscribers connect
         results = measure(url, arrivals, backend, n)
+    if runs is not None:
+        runs.close()
     robot.close()  # teleop's publisher gone: rosbridge's Twists are the only ones on the topic
     bridged = measure_rosbridge(rosbridge, "/bench/cmd_vel", arrivals, backend, n) if rosbridge else ([], [])
     arrivals.sub.unregister()
     drive.close()
     return node, results, bridged
+
+
+def _run_executor(robot, store, tmp):
+    """The run executor the server has (issue 23): each teleop asks it to end a run under way, as in the
+    real server. None for a checkout from before it (``--compare``-style runs with PYTHONPATH)."""
+    try:
+        from flask_move_server.missions.executor import RunExecutor
+        from flask_move_server.missions.history import RunHistory
+    except ImportError:
+        return None
+    runs = RunExecutor(robot, store, RunHistory(os.path.join(tmp, "runs.json")))
+    robot.runs = runs
+    return runs
 
 
 def bare_flask(n):
