@@ -27,14 +27,23 @@ LAST = ("/estop/release", "/estop")  # the e-stop last: once latched, goals and 
 
 
 @pytest.fixture
-def fuzzed_server(robot_config, ready_robot, store):
-    """The server the product runs (http/server.py) on a free port, for the real robot of this test."""
+def fuzzed_server(robot_config, ready_robot, store, tmp_path):
+    """The server the product runs (http/server.py) on a free port, for the real robot of this test,
+    with its run executor (routes and runs) as cli builds it."""
+    from flask_move_server.missions.executor import RunExecutor
+    from flask_move_server.missions.history import RunHistory
     from flask_move_server.web import create_app
 
     robot_config.server.port = 0
     robot_config.navigation.max_wait = 0.5  # a valid /goto with "wait" holds a request at most this long
-    with hardened(create_app(robot_config, ready_robot, store, token=TOKEN), robot_config.server) as (_, url):
-        yield url
+    runs = RunExecutor(ready_robot, store, RunHistory(str(tmp_path / "runs.json")))
+    ready_robot.runs = runs
+    app = create_app(robot_config, ready_robot, store, token=TOKEN, runs=runs)
+    try:
+        with hardened(app, robot_config.server) as (_, url):
+            yield url
+    finally:
+        runs.close()
 
 
 @pytest.mark.timeout(240)
