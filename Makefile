@@ -60,9 +60,11 @@ $(DEBIAN_VENV)/.installed: setup.py Makefile
 	touch $@
 
 # What Debian's Python packages cannot change is left to `make test`: the roslaunch stack's process
-# trees and the sim's stack backend run the same ROS from Debian in both passes (and cost minutes).
+# trees, the sim's stack backend and runs driven through the sim run the same ROS from Debian in both
+# passes (and cost minutes); the runs' HTTP and client sides are in this pass (test_routes_web.py,
+# test_client_routes.py, test_runs_robot.py).
 DEBIAN_SKIPS := --ignore=tests/test_stack_launched.py --ignore=tests/test_modes_robot.py \
-	--ignore=tests/test_sim_modes.py
+	--ignore=tests/test_sim_modes.py --ignore=tests/test_runs_sim.py
 
 test-debian: $(DEBIAN_VENV)/.installed
 	$(DEBIAN_VENV)/bin/python -m pytest -p no:cacheprovider $(DEBIAN_SKIPS) $(PYTEST_ARGS)
