@@ -213,3 +213,19 @@ def test_a_goal_sent_as_the_run_is_paused_or_stopped_does_not_drive(robot_config
                  message="the goal sent during the {} canceled".format(command))
     finally:
         runs.close()
+
+
+def test_a_timetable_that_finds_the_robot_busy_keeps_a_skipped_run_saying_what_happened(runs, robot, store):
+    from flask_move_server.missions.route import Route
+
+    rounds = Route("rounds", ("kitchen", "dock"), schedule=("21:30",))
+    robot.engage_estop("api")
+    skipped = runs.scheduled(rounds)
+    assert (skipped["state"], skipped["trigger"]) == ("skipped", "schedule")
+    assert skipped["message"] == "Not run at its scheduled time: the e-stop was on."
+    robot.release_estop()
+    first = runs.scheduled(rounds)
+    assert first["state"] == "running"
+    second = runs.scheduled(Route("night", ("office",), schedule=("21:30",)))
+    assert second["message"] == "Not run at its scheduled time: the robot was doing another round (rounds)."
+    assert [r["state"] for r in runs.runs()] == ["skipped", "running", "skipped"]

@@ -197,7 +197,9 @@ def test_a_route_scheduled_for_the_next_minute_starts_by_itself_and_a_busy_one_i
     assert {r["trigger"] for r in new} == {"schedule"}
     started, skipped = (by_route["first"], by_route["second"]) if by_route["second"]["state"] == "skipped" else (
         by_route["second"], by_route["first"])
-    assert skipped["state"] == "skipped" and "Run {}".format(started["id"]) in skipped["message"]
+    assert skipped["state"] == "skipped"
+    assert skipped["message"] == "Not run at its scheduled time: the robot was doing another round ({}).".format(
+        started["route"])
     assert ended(sim, started["id"])["state"] == "succeeded"
 
 

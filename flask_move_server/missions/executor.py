@@ -82,22 +82,34 @@ class RunExecutor:
 
     def scheduled(self, route):
         """A schedule is due: start a run, or keep a ``skipped`` one saying why the robot was busy."""
-        try:
-            mode = self._mode_status()
-            with self._lock:
-                self._refuse_start(mode)
-            busy = self._robot.busy_with()
-            if busy:
-                raise RunConflict(busy)
-            return self.start(route, "schedule")
-        except MoveServerError as exc:
-            with self._lock:
-                run = Run.of_route(self._history.next_id, route, "schedule")
-                run.end(SKIPPED, "Not run at its scheduled time: {}".format(exc))
-                self._history.add(run)
-                self._changed(run)
-            log.info("run %d of %s skipped: %s", run.id, route.name, exc)
-            return run.as_dict()
+        busy = self._busy_with()
+        if busy is None:
+            try:
+                return self.start(route, "schedule")
+            except MoveServerError as exc:  # what changed since the look above (a waypoint, the e-stop)
+                busy = str(exc)
+        with self._lock:
+            run = Run.of_route(self._history.next_id, route, "schedule")
+            run.end(SKIPPED, "Not run at its scheduled time: {}".format(busy))
+            self._history.add(run)
+            self._changed(run)
+        log.info("run %d of %s skipped: %s", run.id, route.name, busy)
+        return run.as_dict()
+
+    def _busy_with(self):
+        """What keeps a timetable from starting a run now, said as what happened (not what to do), or None."""
+        with self._lock:
+            other = self._run if self._run is not None and self._run.active else None
+            if other is not None:
+                return "the robot was doing another round ({}).".format(other.route or "a list of places")
+        if self._robot.estop_status()["latched"]:
+            return "the e-stop was on."
+        mode = self._mode_status()
+        if mode is not None and (mode["mode"] != "navigation" or mode["state"] != "running"):
+            return "the robot was not navigating on a map ({}).".format(
+                mode["mode"] if mode["state"] == "running" else "{} {}".format(mode["mode"], mode["state"]))
+        busy = self._robot.busy_with()
+        return busy[0].lower() + busy[1:] if busy else None
 
     def pause(self, run_id):
         return self._act(run_id, "pause", (RUNNING,), "paused")

@@ -237,7 +237,10 @@ live.on("status", showStatus);
 live.on("estop", showEstop);
 live.on("plan", (p) => map.setPlan(p.poses));
 live.on("waypoints", () => { quietly(loadWaypoints()); quietly(loadRoutes()); });  // routes live in the waypoints file
-live.on("run", tellRun);
+live.on("run", (run) => {
+  tellRun(run);
+  if (run.trigger === "schedule") quietly(loadRoutes());  // its route's next run has moved on
+});
 live.on("map", (m) => { if (m.version !== mapVersion) quietly(loadMap()); });
 live.on("mode", (m) => { showModes(m); quietly(loadMaps()); quietly(loadMap()); });
 
