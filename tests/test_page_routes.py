@@ -131,6 +131,7 @@ def test_run_it_the_strip_follows_and_pause_stops_the_robot_until_resumed(sim, p
     page.locator("#run-pause").tap()
     page.wait_for_function("document.getElementById('run').dataset.state === 'paused'")
     assert "paused · " in strip(page)
+    page.wait_for_function("document.getElementById('nav-text').textContent === 'paused: the round waits'")
     assert motors_still(sim)
     page.locator("#run-resume").tap()
     page.wait_for_function("document.getElementById('run').dataset.state === 'running'")

@@ -69,7 +69,7 @@ function showNavigation(nav) {
     if (nav.distance_remaining != null) distance = nav.distance_remaining.toFixed(1) + " m";
   } else if (state === "succeeded") text = "arrived at " + where;
   else if (state === "aborted" || state === "rejected") text = "failed: " + (nav.message ? withoutApi(nav.message) : "no way to " + where);
-  else if (state === "canceled") text = "cancelled";
+  else if (state === "canceled") text = document.body.dataset.run === "paused" ? "paused: the round waits" : "cancelled";
   else if (state === "idle" && nav.message) text = withoutApi(nav.message);
   $("nav-text").textContent = text;
   $("nav-text").title = text;  // cut to two lines on a phone: a tap shows it whole

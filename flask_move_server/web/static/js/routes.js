@@ -43,8 +43,16 @@ function routeNote(r) {
   const loops = r.loops === 0 ? "until stopped" : r.loops === 1 ? "once" : r.loops === 2 ? "twice" : r.loops + " times";
   const wait = r.dwell ? "waits " + r.dwell + " s" : "";
   const at = r.schedule.length ? "at " + r.schedule.join(", ") : "";
-  const next = r.next_run ? "next " + clock(r.next_run) : "";
+  const next = r.next_run ? "next " + nextRun(r.next_run) : "";
   return r.waypoints.join(" → ") + "\n" + [loops, wait, at, next].filter(Boolean).join(" · ");
+}
+
+/** "today 21:30", "Mon 09:00": on the 24-hour clock the timetable is written in. */
+function nextRun(iso) {
+  const at = new Date(iso);
+  const time = at.toLocaleTimeString([], {hour: "2-digit", minute: "2-digit", hourCycle: "h23"});
+  return (at.toDateString() === new Date().toDateString() ? "today" : at.toLocaleDateString([], {weekday: "short"})) +
+    " " + time;
 }
 
 function about(title, note) {

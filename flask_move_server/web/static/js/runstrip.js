@@ -60,7 +60,8 @@ function stopsOf(run) {
 function announceEnd(run) {
   if (!run || ACTIVE.includes(run.state)) return;
   const text = runName(run) + ": " + runResult(run);
-  if (run.state === "failed" || run.state === "interrupted") report(new Error(text));
+  const alarming = run.state === "failed" || run.state === "interrupted" || /^The e-stop/.test(run.message || "");
+  if (alarming) report(new Error(text));  // red, like any refusal: not the green of "done"
   else notify(text);
 }
 
