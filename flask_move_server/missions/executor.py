@@ -244,7 +244,7 @@ class RunExecutor:
     def _act_at_rest(self, run, command):
         """Lock held: skip or cancel a run that is not driving (paused, interrupted)."""
         if command == "cancel":
-            self._finish(run, CANCELED, "Canceled (POST /runs/{}/cancel).".format(run.id))
+            self._canceled(run)
             return
         run.miss("skipped (POST /runs/{}/skip)".format(run.id))
         if not run.advance():
@@ -349,7 +349,7 @@ class RunExecutor:
                 return
             command, self._command = self._command, None
             if command == "cancel":
-                self._finish(run, CANCELED, "Canceled (POST /runs/{}/cancel).".format(run.id))
+                self._canceled(run)
                 return
             if state == "succeeded":  # reached, even if a command came as it arrived
                 run.visit()
@@ -366,6 +366,10 @@ class RunExecutor:
             self._changed(run, progress=True)
             self._dwell_then_advance(run, dwell=state == "succeeded" and command is None, pause=command == "pause")
 
+    def _canceled(self, run):
+        """Lock held: ``run`` ends as its own Cancel asked."""
+        self._finish(run, CANCELED, "Canceled (POST /runs/{}/cancel).".format(run.id))
+
     def _pause(self, run, message):
         """Lock held: ``run`` waits for a resume (the worker sleeps in :meth:`_await_running`)."""
         run.state, run.message = PAUSED, message
@@ -381,7 +385,7 @@ class RunExecutor:
                 return
             command, self._command = self._command, None
             if command == "cancel":
-                self._finish(run, CANCELED, "Canceled (POST /runs/{}/cancel).".format(run.id))
+                self._canceled(run)
                 return
             pause = command == "pause"
         if not run.advance():

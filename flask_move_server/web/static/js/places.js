@@ -1,5 +1,6 @@
 // The Places panel and the places on the map: the list (Go, Rename, Delete), Mark here, and a
 // place marked by a press on the map. The list and the map's markers are drawn from one read.
+import {rowButton} from "./buttons.js";
 import {api} from "./api.js";
 import {notify} from "./notice.js";
 
@@ -52,16 +53,7 @@ function placeRow(w) {
   return li;
 }
 
-function button(label, className, onClick) {
-  const b = document.createElement("button");
-  b.type = "button";
-  b.textContent = label;
-  b.className = className;
-  b.disabled = className.includes("needs-live") && !ctx.isLive() ||
-    className.includes("moves") && document.body.dataset.estop === "1";
-  b.onclick = onClick;
-  return b;
-}
+const button = (label, className, onClick) => rowButton(label, className, onClick, ctx.isLive);
 
 export const goTo = (name) => { ctx.buzz(); return quietly(ctx.sendGoal({name})); };
 

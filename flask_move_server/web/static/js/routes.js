@@ -1,6 +1,7 @@
 // The Routes panel: the map's routes (their stops, loops, the times they run by themselves) with
 // Run, Edit and Delete, New route (routeedit.js), and the last few runs with how each ended; an
 // interrupted one (the robot's server stopped under it) can be resumed.
+import {rowButton} from "./buttons.js";
 import {api} from "./api.js";
 import {notify} from "./notice.js";
 import {clock, runName, runResult} from "./runwords.js";
@@ -68,16 +69,7 @@ function about(title, note) {
   return box;
 }
 
-function button(label, className, onClick) {
-  const b = document.createElement("button");
-  b.type = "button";
-  b.textContent = label;
-  b.className = className;
-  b.disabled = className.includes("needs-live") && !ctx.isLive() ||
-    className.includes("moves") && document.body.dataset.estop === "1";
-  b.onclick = onClick;
-  return b;
-}
+const button = (label, className, onClick) => rowButton(label, className, onClick, ctx.isLive);
 
 const run = (name) => quietly(ctx.move("/runs", {route: name}).then((answer) => tellRun(answer.run)));
 
