@@ -347,9 +347,8 @@ class RunExecutor:
         with self._lock:
             if self._run is not run:
                 return
-            command, self._command = self._command, None
+            command = self._take_command(run)
             if command == "cancel":
-                self._canceled(run)
                 return
             if state == "succeeded":  # reached, even if a command came as it arrived
                 run.visit()
@@ -365,6 +364,13 @@ class RunExecutor:
                     return
             self._changed(run, progress=True)
             self._dwell_then_advance(run, dwell=state == "succeeded" and command is None, pause=command == "pause")
+
+    def _take_command(self, run):
+        """Lock held: the pending command, now acted on (a ``cancel`` ends ``run`` here), or None."""
+        command, self._command = self._command, None
+        if command == "cancel":
+            self._canceled(run)
+        return command
 
     def _canceled(self, run):
         """Lock held: ``run`` ends as its own Cancel asked."""
@@ -383,9 +389,8 @@ class RunExecutor:
                                 timeout=run.dwell)
             if self._run is not run:
                 return
-            command, self._command = self._command, None
+            command = self._take_command(run)
             if command == "cancel":
-                self._canceled(run)
                 return
             pause = command == "pause"
         if not run.advance():
