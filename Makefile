@@ -8,10 +8,12 @@ DEBIAN_VENV ?= .venv-debian
 PY := $(VENV)/bin/python
 PYTEST_ARGS ?=
 
-# ROS 1 from Debian (on Ubuntu 20.04 + Noetic these come from /opt/ros/noetic instead).
+# ROS 1 from Debian (on Ubuntu 20.04 + Noetic these come from /opt/ros/noetic instead), and numpy
+# (the explorer's frontier search: Debian's and Raspberry Pi OS's python3-numpy).
 ROS_DEBS := python3-rospy python3-rosmaster python3-roslaunch python3-rosgraph python3-actionlib \
 	python3-move-base-msgs python3-tf2-ros python3-geometry-msgs python3-nav-msgs \
-	python3-sensor-msgs python3-visualization-msgs python3-std-msgs python3-venv iproute2
+	python3-sensor-msgs python3-visualization-msgs python3-std-msgs python3-venv iproute2 \
+	python3-numpy
 # systemd-analyze verify and rospack for the deployment tests (units, launch files).
 # python3-wheel: pip's --no-build-isolation installs (installer tests, test-debian) on Debian's setuptools.
 DEPLOY_TEST_DEBS := systemd rospack-tools python3-wheel

@@ -37,6 +37,7 @@ setup(
         "zeroconf>=0.47",
         "ifaddr>=0.1.7",  # zeroconf's own dependency; lan/mdns.py polls the interfaces with it
         "pyserial>=3.4",
+        "numpy>=1.17",  # explore/: frontiers and reachability, vectorised (Debian's python3-numpy; 1.17 on Noetic)
     ],
     extras_require={
         "test": ["pytest>=7", "pytest-timeout>=2", "hypothesis>=6", "ruff>=0.4", "vermin>=1.5",

@@ -125,6 +125,12 @@ class RunConflict(MoveServerError, RuntimeError):
     code = "run_conflict"
 
 
+class ExploreConflict(MoveServerError, RuntimeError):
+    """No exploration can start or go on now: one is under way, or a run is active."""
+
+    code = "explore_conflict"
+
+
 class WaypointFileError(MoveServerError, OSError):
     """The waypoints file cannot be read, parsed or written."""
 

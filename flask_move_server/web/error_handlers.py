@@ -30,6 +30,7 @@ STATUS = (
     (errors.WaypointExists, 409),
     (errors.WaypointInUse, 409),
     (errors.RunConflict, 409),
+    (errors.ExploreConflict, 409),
     (errors.NoPose, 409),
     (errors.WaypointsLocked, 503),
     (errors.WaypointFileError, 409),
