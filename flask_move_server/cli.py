@@ -63,8 +63,10 @@ class Server:
         self.modes = self._build_modes(stack)
         maps = self._build_maps(stack, store)
         runs = self._build_runs(stack, robot, store)
+        explorer = self._build_explorer(stack, robot, maps)
         app = create_app(self.config, robot, store, token=self.config.resolved_token(), events=self.events,
-                         modes=self.modes, maps=maps, doctor=self._build_doctor(robot), runs=runs)
+                         modes=self.modes, maps=maps, doctor=self._build_doctor(robot), runs=runs,
+                         explorer=explorer)
         self.http = HttpServer(app, self.config.server)
         stack.callback(self.http.close)
         stack.callback(robot.stop)
@@ -111,6 +113,14 @@ class Server:
         robot.runs = runs
         self.runs = runs
         return runs
+
+    def _build_explorer(self, stack, robot, maps):
+        """The explorer behind ``POST /explore`` (issue 24), or None: ``/explore`` then answers 409.
+
+        TODO(issue 24, lead): build ``explore.explorer.Explorer`` here (its events on ``self.events``),
+        push its close on ``stack``, and give it to the robot so ``/stop`` and the e-stop cancel it.
+        """
+        return None
 
     def _build_doctor(self, robot):
         """The first-boot doctor: ROS as the server's node sees it, and this machine."""
