@@ -94,8 +94,12 @@ class FakeExplorer:
         return shown
 
     def play(self, steps, period=0.5):
-        """Advance through ``steps`` (dicts of changes), one every ``period`` s, in a thread of its own."""
+        """Advance through ``steps`` (dicts of changes), one every ``period`` s from the next start (or the one
+        under way), in a thread of its own; an exploration ended meanwhile (canceled) is left as it is."""
         def run():
+            while self._exploration is None:
+                if self._stopping.wait(0.01):
+                    return
             for changes in steps:
                 if self._stopping.wait(period):
                     return
