@@ -86,6 +86,8 @@ class FakeExplorer:
     def advance(self, **changes):
         """The exploration moved on: ``changes`` to its fields, told as an ``explore`` event; the new EXP."""
         with self._lock:
+            if "elapsed" in changes:  # the clock goes on from there
+                self._began = time.monotonic() - changes["elapsed"]
             self._exploration.update(changes, elapsed=changes.get("elapsed", self._elapsed()))
             if changes.get("state") == "done":
                 self.maps.add(self._exploration["save_as"])

@@ -14,6 +14,7 @@ const WORDS = {
     pose: "The position can be set only when navigating on a saved map: Maps → Use a map.",
     save: "Saving needs a map being made: Maps → Start mapping first.",
     run: "Routes run only while navigating on a map: Maps → Use a map.",
+    explore: "The robot cannot explore in the mode it is in: see Maps.",
   }[what] || "The robot is not in the right mode for this: see Maps."),
   move_base_unavailable: () => "The robot's navigation is not ready yet: wait until the top bar stops saying starting.",
   ros_unavailable: () => "The robot's ROS is not running yet: wait a moment (or see Health).",
@@ -28,6 +29,11 @@ const WORDS = {
   run_conflict: (e) => /^Run \d+ \(/.test(e.message) ?  // "Run 3 (rounds) is running: cancel it first"
     "Another route is running: press Cancel on its strip at the top first, or wait until it ends." :
     "The route has moved on meanwhile (it ended, or is no longer paused): see its strip.",
+  explore_conflict: (e) => /does not explore/.test(e.message) ? "This robot cannot explore by itself (its server " +
+    "has no explorer): Start mapping and drive it instead." : /\brun\b|route/i.test(e.message) ?
+    "A route is running: press Cancel on its strip at the top first, or wait until it ends." :
+    "The robot is exploring already: its strip at the top says how far it got (Stop ends it).",
+  modes_off: () => "This robot's navigation is started outside its server, so the page cannot switch it to mapping.",
   unknown_run: () => "That run of a route is no longer kept on the robot.",
   unknown_route: () => "That route is gone (deleted on another phone?).",
   bad_route: (e) => withoutApi(e.message).replace(/Field '(\w+)'/g, (all, f) => ROUTE_FIELDS[f] || f)
