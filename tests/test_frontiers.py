@@ -243,6 +243,15 @@ def test_free_cells_on_the_canvas_edge_are_no_frontier():
     assert not reachable[:, -2:].any() and reachable[:, -3].any()  # the edge stops the robot as a wall
 
 
+def test_the_canvas_edge_stops_the_robot_even_where_unknown_cells_lie_between():
+    art = "\n".join(line[:-1] + "?" for line in TO_THE_EDGE.strip("\n").split("\n"))
+    grid, robot = drawn(art)  # the last column unknown: the edge 2 cells from the free cells beside it
+    reachable = reachable_free(grid, robot, RADIUS)
+    assert not reachable[:, -2:].any() and reachable[:, -3].any()
+    found = survey(grid, robot)  # the unknown column is on the canvas: a frontier, served from 0.3 m off the edge
+    assert len(found.frontiers) == 1 and found.frontiers[0].target[0] == pytest.approx(0.85)
+
+
 CORRIDOR = """
 ???################################???
 ????................R.............????
@@ -332,6 +341,39 @@ def test_rotated_maps_and_positions_that_are_no_numbers_are_refused():
                          RADIUS)
     with pytest.raises(ValueError, match="finite"):
         frontiers.survey(grid, (math.nan, 0.0), RADIUS)
+
+
+def test_reachable_free_matches_a_cell_by_cell_reckoning_on_random_maps():
+    random = np.random.RandomState(7)
+    for _ in range(40):
+        height, width = random.randint(8, 40), random.randint(8, 40)
+        cells = np.where(random.random_sample((height, width)) < random.choice([0.01, 0.03, 0.15]), 100, 0)
+        cells = cells.astype(np.int8)
+        cells[random.random_sample((height, width)) < 0.1] = -1
+        grid = mapfile.Grid(width, height, RES, 0.0, 0.0, cells.tobytes())
+        radius = random.choice([0.0, 0.1, 0.2, 0.34])
+        standable = standable_by_hand(cells, radius)
+        if not standable.any():
+            continue
+        rows, cols = np.nonzero(standable)
+        pick = random.randint(rows.size)
+        robot = ((cols[pick] + 0.5) * RES, (rows[pick] + 0.5) * RES)
+        expected = bfs_labels(standable, 4)[0]
+        expected = expected == expected[rows[pick], cols[pick]]
+        np.testing.assert_array_equal(reachable_free(grid, robot, radius), expected)
+
+
+def standable_by_hand(cells, radius):
+    """Free cells whose centre is more than radius / RES + 0.5 cells from every occupied cell and
+    from the ring of cells just beyond the canvas."""
+    height, width = cells.shape
+    walls = [(r, c) for r, c in zip(*np.nonzero(cells >= 50))]
+    walls += [(r, c) for r in range(-1, height + 1) for c in (-1, width)]
+    walls += [(r, c) for c in range(width) for r in (-1, height)]
+    walls = np.array(walls)
+    rows, cols = np.mgrid[0:height, 0:width]
+    d2 = (rows[..., None] - walls[:, 0]) ** 2 + (cols[..., None] - walls[:, 1]) ** 2
+    return (cells >= 0) & (cells < 50) & (d2.min(axis=2) > (radius / RES + 0.5) ** 2 + 1e-6)
 
 
 def bfs_labels(mask, connectivity):

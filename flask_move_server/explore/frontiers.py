@@ -193,8 +193,8 @@ def _check_frame(grid, xy):
 class _Window:
     """The known part of a grid: the bounding box of its known cells plus one cell all round.
 
-    Box cells beyond the canvas are occupied here: the edge stops the robot as a wall would
-    (``sim/costmap.py`` pads its grid so) and is no unknown space to explore.
+    Box cells beyond the canvas are occupied here: the edge is no unknown space to explore, and it
+    stops the robot as a wall would (``sim/costmap.py`` pads its grid so; see :meth:`clear_of_edge`).
     """
 
     def __init__(self, grid, cells, rows, cols):
@@ -241,6 +241,20 @@ class _Window:
         x, y = self.centres(row, col)
         return float(x), float(y)
 
+    def clear_of_edge(self, reach):
+        """Box cells farther than ``reach`` cells from the canvas edge (a wall one cell beyond it).
+
+        The box's ring holds that wall where the box touches the edge; this also covers known cells
+        a few cells short of it, whose edge lies beyond the box.
+        """
+        r2 = reach * reach + EPSILON
+        height, width = self.free.shape
+
+        def clear(first, count, size):
+            index = np.arange(first, first + count)
+            return ((index + 1) ** 2 > r2) & ((size - index) ** 2 > r2)
+        return clear(self.top, height, self.shape[0])[:, None] & clear(self.left, width, self.shape[1])[None, :]
+
     def paste(self, canvas, box_array):
         """Copy a box-shaped array into the matching part of a canvas-shaped one."""
         canvas[self.canvas_part] = box_array[self.box_part]
@@ -248,7 +262,8 @@ class _Window:
 
 def _reachable(window, robot_xy, radius):
     """(mask of the box cells the robot reaches, its start cell or None)."""
-    standable = window.free & ~_dilate(window.occupied, radius / window.resolution + 0.5)
+    reach = radius / window.resolution + 0.5
+    standable = window.free & ~_dilate(window.occupied, reach) & window.clear_of_edge(reach)
     start = _start_cell(window, standable, robot_xy)
     if start is None:
         return np.zeros_like(standable), None
