@@ -334,13 +334,15 @@ def test_the_demo_flat_lets_the_robot_reach_every_room_but_the_locked_store_room
     assert found.frontiers == () and found.start == pytest.approx((0.025, 0.025))
 
 
-def test_rotated_maps_and_positions_that_are_no_numbers_are_refused():
+def test_rotated_maps_positions_that_are_no_numbers_and_negative_radii_are_refused():
     grid, robot = drawn(OPEN_SIDE)
     with pytest.raises(ValueError, match="yaw"):
         frontiers.survey(mapfile.Grid(grid.width, grid.height, RES, 0.0, 0.0, grid.cells, origin_yaw=0.3), robot,
                          RADIUS)
     with pytest.raises(ValueError, match="finite"):
         frontiers.survey(grid, (math.nan, 0.0), RADIUS)
+    with pytest.raises(ValueError, match="radius"):
+        frontiers.survey(grid, robot, -0.2)
 
 
 def test_reachable_free_matches_a_cell_by_cell_reckoning_on_random_maps():

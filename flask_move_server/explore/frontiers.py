@@ -72,12 +72,12 @@ def survey(grid, robot_xy, radius, blacklist=(), blacklist_radius=0.5, min_size=
     (goals that failed) is left out and counted. The cost is explore_lite's, ``potential_scale *
     distance - gain_scale * size`` (both in metres), divided by ``potential_scale``: one of its two
     scales is redundant, so ``gain`` is the one knob. Its default, 1, makes a metre of frontier worth
-    a metre of driving: a doorway-wide opening (0.9 m) beats a 0.3 m crumb up to 0.6 m nearer, yet
-    across a flat (distances of 5-20 m against openings of 1-3 m) the nearest region is still
-    finished first, so the robot does not cross the flat and back. explore_lite's defaults (3 and 1)
-    are ``gain`` 1/3, which lets the nearest crumbs win over a doorway beside them.
+    a metre of driving: a doorway-wide opening (0.9 m) wins over a 0.3 m crumb up to 0.6 m nearer
+    than it, while distances across a flat (5-20 m) still outweigh openings (1-3 m), so the robot
+    finishes the region it is in before crossing the flat. explore_lite's defaults (3 and 1) are
+    ``gain`` 1/3: a crumb 0.2 m nearer than a doorway beside it wins, and the robot picks at crumbs.
     """
-    _check_frame(grid, robot_xy)
+    _check_inputs(grid, robot_xy, radius)
     window = _Window.of(grid)
     if window is None:
         return Survey((), (), 0, 0.0, 0.0, None)
@@ -104,7 +104,7 @@ def reachable_free(grid, start_xy, radius):
     The same rule as :func:`survey`'s: known free cells outside the inflation, 4-connected to the
     start (the robot's cell, or the nearest such cell within 0.5 m). All False when there is none.
     """
-    _check_frame(grid, start_xy)
+    _check_inputs(grid, start_xy, radius)
     reachable = np.zeros((grid.height, grid.width), dtype=bool)
     window = _Window.of(grid)
     if window is not None:
@@ -182,7 +182,9 @@ def _roots(count, a, b):
     return parent
 
 
-def _check_frame(grid, xy):
+def _check_inputs(grid, xy, radius):
+    if not (radius >= 0 and math.isfinite(radius)):
+        raise ValueError("a robot's radius must be 0 or more metres, got {!r}".format(radius))
     if abs(grid.origin_yaw) > EPSILON:
         raise ValueError("frontiers need a map whose origin is not rotated (yaw 0), got yaw {!r}".format(
             grid.origin_yaw))
