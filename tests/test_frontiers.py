@@ -307,13 +307,12 @@ def test_known_and_reachable_areas():
 def test_a_map_drawn_anywhere_on_a_large_canvas_surveys_the_same():
     grid, robot = doorway(5)
     small = frontiers.survey(grid, robot, RADIUS)
-    cells = frontiers.as_array(grid)
+    assert len(small.frontiers) == 1
+    cells, shift = frontiers.as_array(grid), (-3.0, 2.0)  # where the small map's origin lands
     for top, left in [(0, 0), (300 - grid.height, 400 - grid.width), (137, 250)]:
         canvas = np.full((300, 400), -1, dtype=np.int8)
         canvas[top:top + grid.height, left:left + grid.width] = cells
-        origin = (-left * RES - 3.0, -top * RES + 2.0)
-        big = mapfile.Grid(400, 300, RES, origin[0], origin[1], canvas.tobytes())
-        shift = (origin[0] + left * RES, origin[1] + top * RES)
+        big = mapfile.Grid(400, 300, RES, shift[0] - left * RES, shift[1] - top * RES, canvas.tobytes())
         moved = (robot[0] + shift[0], robot[1] + shift[1])
         found = frontiers.survey(big, moved, RADIUS)
         assert [f.size for f in found.frontiers] == [f.size for f in small.frontiers]
