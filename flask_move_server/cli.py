@@ -64,9 +64,10 @@ class Server:
         self.modes = self._build_modes(stack)
         maps = self._build_maps(stack, store)
         runs = self._build_runs(stack, robot, store)
-        self.explorer = self._build_explorer(stack, robot)
+        explorer = self.explorer = self._build_explorer(stack, robot)
         app = create_app(self.config, robot, store, token=self.config.resolved_token(), events=self.events,
-                         modes=self.modes, maps=maps, doctor=self._build_doctor(robot), runs=runs)
+                         modes=self.modes, maps=maps, doctor=self._build_doctor(robot), runs=runs,
+                         explorer=explorer)
         self.http = HttpServer(app, self.config.server)
         stack.callback(self.http.close)
         stack.callback(robot.stop)

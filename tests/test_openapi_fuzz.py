@@ -15,6 +15,7 @@ Needs schemathesis (the ``test`` extra: 4.x, or 3.x where Python is older than 4
 import pytest
 import requests
 
+from tests.fake_explorer import FakeExplorer
 from tests.test_http_server import hardened
 
 schemathesis = pytest.importorskip(
@@ -29,7 +30,8 @@ LAST = ("/estop/release", "/estop")  # the e-stop last: once latched, goals and 
 @pytest.fixture
 def fuzzed_server(robot_config, ready_robot, store, tmp_path):
     """The server the product runs (http/server.py) on a free port, for the real robot of this test,
-    with its run executor (routes and runs) as cli builds it."""
+    with its run executor (routes and runs) as cli builds it, and an explorer (the fake one: the
+    web layer's checks are what is fuzzed here)."""
     from flask_move_server.missions.executor import RunExecutor
     from flask_move_server.missions.history import RunHistory
     from flask_move_server.web import create_app
@@ -38,12 +40,14 @@ def fuzzed_server(robot_config, ready_robot, store, tmp_path):
     robot_config.navigation.max_wait = 0.5  # a valid /goto with "wait" holds a request at most this long
     runs = RunExecutor(ready_robot, store, RunHistory(str(tmp_path / "runs.json")))
     ready_robot.runs = runs
-    app = create_app(robot_config, ready_robot, store, token=TOKEN, runs=runs)
+    explorer = FakeExplorer(estop=ready_robot.estop)
+    app = create_app(robot_config, ready_robot, store, token=TOKEN, runs=runs, explorer=explorer)
     try:
         with hardened(app, robot_config.server) as (_, url):
             yield url
     finally:
         runs.close()
+        explorer.close()
 
 
 @pytest.mark.timeout(240)

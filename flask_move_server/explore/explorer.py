@@ -254,7 +254,7 @@ class Explorer:
         return survey
 
     def _follow(self, goal, blacklist):
-        """The goal under way after a look at it: kept, or ended (None; its target blacklisted unless we replaced it)."""
+        """The goal under way after a look: kept, or ended (None; its target blacklisted unless replaced by us)."""
         state, why = self._robot.goal_end(goal.seq, 0)
         if state == "succeeded":
             blacklist.append(goal.target)

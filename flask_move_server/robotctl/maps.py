@@ -2,13 +2,15 @@
 
 ``map save`` sends ``POST /maps`` with a request timeout long enough for the
 server to wait ``maps.save_timeout`` for a map and write a large one. The mode
-commands (``map start``, ``map use``) join the same ``map`` parser.
+commands (``map start``, ``map use``) and ``map explore`` (robotctl/explore.py)
+join the same ``map`` parser.
 """
 
 import contextlib
 import sys
 
 from flask_move_server.errors import ClientError
+from flask_move_server.robotctl import explore as client_explore
 from flask_move_server.robotctl import modes as client_modes
 from flask_move_server.robotctl.api import ExitStatus, name_path
 from flask_move_server.robotctl.text import columns, padded
@@ -97,7 +99,7 @@ def _in_robotctl_words(name):
 
 
 ACTIONS = {"save": cmd_save, "list": cmd_list, "rm": cmd_rm, "start": client_modes.cmd_map,
-           "use": client_modes.cmd_map}
+           "use": client_modes.cmd_map, "explore": client_explore.cmd_explore}
 
 
 def map_table(maps, active=None):
@@ -120,11 +122,12 @@ def _size(info):
 
 
 def add_parser(sub, positive):
-    """``robotctl map start|use|save|list|rm`` on robotctl's subcommand parser ``sub``."""
-    p = sub.add_parser("map", help="the robot's maps: start (mapping), save, list, use, rm")
+    """``robotctl map start|explore|use|save|list|rm`` on robotctl's subcommand parser ``sub``."""
+    p = sub.add_parser("map", help="the robot's maps: start (mapping), explore, save, list, use, rm")
     p.set_defaults(run=cmd_map, action="list")
     actions = p.add_subparsers(dest="action", metavar="ACTION")
     client_modes.add_map_actions(actions, positive)
+    client_explore.add_action(actions, positive)
     save = actions.add_parser("save", help="save the map being made as NAME (in mapping mode)")
     save.add_argument("name")
     save.add_argument("--overwrite", action="store_true", help="replace a map saved under NAME")

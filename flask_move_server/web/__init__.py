@@ -14,6 +14,7 @@ from flask_move_server.web import auth, error_handlers, guard
 from flask_move_server.web.diagnostics import diagnostics_api
 from flask_move_server.web.estop import estop
 from flask_move_server.web.events import events_api
+from flask_move_server.web.explore import explore_api
 from flask_move_server.web.maps import maps_api
 from flask_move_server.web.missions import missions_api
 from flask_move_server.web.modes import modes as modes_routes
@@ -64,7 +65,8 @@ class UntypedResponse(Response):
     default_mimetype = None
 
 
-def create_app(config, robot, store, token=None, events=None, modes=None, maps=None, doctor=None, runs=None):
+def create_app(config, robot, store, token=None, events=None, modes=None, maps=None, doctor=None, runs=None,
+               explorer=None):
     """Build the WSGI app serving ``robot`` and the waypoints in ``store``; ``events``: the server's bus.
 
     ``modes``: the server's ModeManager (None: modes are off, the stack runs outside this server).
@@ -72,6 +74,8 @@ def create_app(config, robot, store, token=None, events=None, modes=None, maps=N
     (default: the configured maps folder, no live map, no mode manager).
     ``doctor``: the :class:`~flask_move_server.diagnostics.doctor.Doctor` behind ``/diagnostics``.
     ``runs``: the :class:`~flask_move_server.missions.executor.RunExecutor` behind ``/runs``.
+    ``explorer``: the :class:`~flask_move_server.explore.explorer.Explorer` behind ``/explore`` (None: this
+    server does not explore; ``POST /explore`` answers 409).
     """
     events = events if events is not None else EventBus()
     modes = modes if modes is not None else ModeManager(config, None)
@@ -89,7 +93,7 @@ def create_app(config, robot, store, token=None, events=None, modes=None, maps=N
     app.json.mimetype = "application/json; charset=utf-8"
     app.extensions["flask_move_server"] = {
         "config": config, "robot": robot, "store": store, "events": events, "maps": maps, "modes": modes,
-        "doctor": doctor, "runs": runs}
+        "doctor": doctor, "runs": runs, "explorer": explorer}
     error_handlers.init_app(app)
     guard.init_app(app, config)  # before auth: it protects robots without a token too
     auth.init_app(app, token)
@@ -97,6 +101,7 @@ def create_app(config, robot, store, token=None, events=None, modes=None, maps=N
     app.register_blueprint(estop)
     app.register_blueprint(maps_api)
     app.register_blueprint(missions_api)
+    app.register_blueprint(explore_api)
     app.register_blueprint(events_api)
     app.register_blueprint(description)
     app.register_blueprint(modes_routes)

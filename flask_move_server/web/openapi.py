@@ -16,6 +16,7 @@ from flask_move_server.missions import route as routes
 from flask_move_server.missions import run as runs
 from flask_move_server.modes.targets import MODES
 from flask_move_server.waypoints import NAME_RULE, POSITION_LIMIT, YAW_LIMIT
+from flask_move_server.web import explore
 
 description = Blueprint("openapi", __name__)
 
@@ -27,7 +28,8 @@ ERROR_CODES = {
          "waypoint, map, route, run or endpoint",
     405: "method_not_allowed: the path takes other methods (the Allow header lists them)",
     409: "navigation_failed (with state), no_pose, command_late, estop_latched, estop_button_pressed, waypoints_file, "
-         "wrong_mode, map_exists, map_in_use, map_configured, mode_switching, modes_off, waypoint_in_use, run_conflict",
+         "wrong_mode, map_exists, map_in_use, map_configured, mode_switching, modes_off, waypoint_in_use, "
+         "run_conflict, explore_conflict",
     413: "body_too_large: the body is over server.max_body_bytes",
     503: "ros_unavailable, move_base_unavailable, drive_error, shutting_down, waypoints_locked, map_file, "
          "no_map_received, stack_failed, too_many_streams",
@@ -65,6 +67,7 @@ def build(config):
     paths.update(_mode_paths(config))
     paths.update(_diagnostics())
     paths.update(_missions())
+    paths.update(_explore())
     if config.server.static:
         paths.update(_page())
     return {
@@ -225,6 +228,43 @@ def _missions():
     return paths
 
 
+def _explore():
+    """``/explore`` (docs/api.md, "Exploration"): map the flat by itself, come back, save the map."""
+    exploration = _object({
+        "state": {"enum": ["starting", "exploring", "returning", "saving", "done", "failed", "canceled"]},
+        "frontiers": {"type": "integer", "description": "reachable frontiers left"},
+        "known_m2": {"type": "number", "description": "square metres of the map known (free or occupied)"},
+        "goals": {"type": "integer", "description": "goals sent"},
+        "unreachable": {"type": "integer", "description": "frontiers seen but unreachable"},
+        "elapsed": {"type": "number", "description": "seconds since it started"},
+        "map": {"type": "string", "nullable": True, "description": "the map's name once saved"},
+        "message": {"type": "string"}, "save_as": {"type": "string"},
+        "then": {"enum": list(explore.THEN)}, "max_minutes": {"type": "number"},
+        "started": {"type": "string", "description": "when it started, the robot's local time (ISO 8601)"},
+        "target": {"type": "array", "items": {"type": "number"}, "minItems": 2, "maxItems": 2, "nullable": True,
+                   "description": "[x, y] in the map frame: the frontier being driven to"}},
+        ["state", "frontiers", "known_m2", "goals", "unreachable", "elapsed", "map", "message"])
+    exploration["additionalProperties"] = True  # more fields may come; docs/api.md lists those promised
+    start = _object({"save_as": _name("the name to save the map as: " + MAP_NAME_RULE),
+                     "then": {"enum": list(explore.THEN), "description": "once saved: navigate on the map "
+                                                                         "(default) or idle"},
+                     "max_minutes": {"type": "number", "exclusiveMinimum": True, "minimum": 0,
+                                     "maximum": explore.MAX_MINUTES,
+                                     "description": "stop looking after this long, then come back and save "
+                                                    "(default {:g})".format(explore.DEFAULT_MINUTES)},
+                     "return_home": {"type": "boolean", "description": "come back to where it started before "
+                                                                       "saving (default true)"},
+                     "overwrite": {"type": "boolean", "description": "replace a map saved as save_as"},
+                     "valid_until": VALID_UNTIL}, ["save_as"])
+    return {"/explore": {
+        "get": _operation("The exploration under way, or the last one (null before the first)", None,
+                          {200: _json(_object({"exploration": dict(exploration, nullable=True)}))}),
+        "post": _operation("Explore: map by itself (starting mapping if needed), come back, save the map, then "
+                           "navigate on it", start, {202: _ok({"exploration": exploration})},
+                           errors=(409, 503)),
+    }}
+
+
 def _route_fields():
     return {"waypoints": {"type": "array", "minItems": 1, "maxItems": routes.MAX_WAYPOINTS, "items": _name(),
                           "description": "waypoint names of the active map, in the order to visit them"},
@@ -336,8 +376,8 @@ _PNG = {200: {"description": "a greyscale PNG, ETag = the map's version",
 
 def _events():
     stream = {"description": "Server-Sent Events: 'event: <kind>' (pose, status, estop, plan, scan, mode, map, "
-                             "waypoints, clock) and 'data: <one JSON object>', the latest of each kind first; "
-                             "a clock event every 2 s. docs/api.md lists each kind's fields.",
+                             "waypoints, run, explore, clock) and 'data: <one JSON object>', the latest of each "
+                             "kind first; a clock event every 2 s. docs/api.md lists each kind's fields.",
               "content": {"text/event-stream": {"schema": {"type": "string"}}}}
     return _operation("The robot's state as it changes (Server-Sent Events)", None, {200: stream}, errors=(503,))
 
