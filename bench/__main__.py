@@ -24,6 +24,7 @@ BENCHMARKS = [
     ("schedules", "bench_schedules.py", ["--seconds", "10", "--repeat", "2", "--settle", "3"]),
     ("teleop", "bench_teleop.py", ["--requests", "100", "--seconds", "4"]),
     ("maps", "bench_maps.py", ["--repeat", "3"]),
+    ("frontiers", "bench_frontiers.py", ["--repeat", "10"]),
     ("slam", "bench_slam.py", []),
     ("sim", "bench_sim.py", ["--repeat", "3", "--drive-seconds", "8"]),
     ("stack", "bench_stack.py", ["--repeat", "2"]),

@@ -44,6 +44,7 @@ class Server:
         self.robot = None
         self.modes = None
         self.runs = None
+        self.explorer = None
         self._simulation = None
         self.events = None
         self._stack = contextlib.ExitStack()
@@ -63,7 +64,7 @@ class Server:
         self.modes = self._build_modes(stack)
         maps = self._build_maps(stack, store)
         runs = self._build_runs(stack, robot, store)
-        explorer = self._build_explorer(stack, robot, maps)
+        explorer = self.explorer = self._build_explorer(stack, robot)
         app = create_app(self.config, robot, store, token=self.config.resolved_token(), events=self.events,
                          modes=self.modes, maps=maps, doctor=self._build_doctor(robot), runs=runs,
                          explorer=explorer)
@@ -114,13 +115,17 @@ class Server:
         self.runs = runs
         return runs
 
-    def _build_explorer(self, stack, robot, maps):
-        """The explorer behind ``POST /explore`` (issue 24), or None: ``/explore`` then answers 409.
+    def _build_explorer(self, stack, robot):
+        """The explorer (``POST /explore``) over the mode manager and the map service; closed before the robot."""
+        from flask_move_server.explore.explorer import Explorer
 
-        TODO(issue 24, lead): build ``explore.explorer.Explorer`` here (its events on ``self.events``),
-        push its close on ``stack``, and give it to the robot so ``/stop`` and the e-stop cancel it.
-        """
-        return None
+        cfg = self.config
+        radius = cfg.sim.robot_radius if cfg.sim.enabled else cfg.explore.robot_radius
+        explorer = Explorer(robot, self.modes, self.maps, radius, events=self.events,
+                            progress_timeout=cfg.explore.progress_timeout, start_timeout=cfg.modes.start_timeout)
+        stack.callback(explorer.close)
+        robot.explorer = explorer
+        return explorer
 
     def _build_doctor(self, robot):
         """The first-boot doctor: ROS as the server's node sees it, and this machine."""

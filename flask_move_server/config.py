@@ -245,6 +245,14 @@ class DiagnosticsConfig:
 
 
 @dataclass
+class ExploreConfig:
+    """The explorer (``POST /explore``): how much room the robot needs, and how long it may get nowhere."""
+
+    robot_radius: float = checked(rules.positive, default=0.15)  # with --sim: sim.robot_radius
+    progress_timeout: float = checked(rules.positive, default=30.0)
+
+
+@dataclass
 class Config:
     """The whole server configuration, one section per concern."""
 
@@ -259,6 +267,7 @@ class Config:
     maps: MapsConfig = field(default_factory=MapsConfig)
     modes: ModesConfig = field(default_factory=ModesConfig)
     diagnostics: DiagnosticsConfig = field(default_factory=DiagnosticsConfig)
+    explore: ExploreConfig = field(default_factory=ExploreConfig)
     source: str = internal_field(default="(defaults)")
 
     def resolved_token(self):

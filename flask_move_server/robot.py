@@ -32,6 +32,7 @@ class Robot:
         self.estop.when_engaged(lambda source: self.stop(ESTOP.format(ESTOP_SOURCES.get(source, source))))
         self.shutting_down = False
         self.runs = None  # missions/executor.py: the run under way, ended by any other command
+        self.explorer = None  # explore/explorer.py: an exploration under way, ended by any other command too
         self.goal_gate = None  # modes/goal_gate.py, when this server runs the navigation stack
         self.ground_truth = None  # with --sim: the simulated robot's true pose (a callable), shown in /status
 
@@ -100,13 +101,15 @@ class Robot:
         return canceled
 
     def _end_run(self, reason, wait_for_send=True):
-        """Someone else commands the robot: the run under way ends ``canceled`` with ``reason``.
+        """Someone else commands the robot: the run (or exploration) under way ends ``canceled`` with ``reason``.
 
         ``wait_for_send``: for a command about to send motion of its own, so that a goal the run is
         sending goes first and is replaced, never the other way round.
         """
         if self.runs is not None:
             self.runs.end_by(reason, wait_for_send)
+        if self.explorer is not None:
+            self.explorer.cancel(reason, wait_for_send)
 
     def cancel_goal(self, seq):
         """Cancel goal ``seq`` if it is still the one under way (a run's, paused or ended); zero velocity then."""
@@ -132,6 +135,8 @@ class Robot:
         self.navigator.trips = None  # the stop below ends the trip, but a restart must still say it cut one short
         if self.runs is not None:
             self.runs.interrupt(SHUT_DOWN)  # not canceled: the run is resumable after the restart
+        if self.explorer is not None:
+            self.explorer.cancel("The server stopped while exploring.", wait_for_send=False)
         self.stop()
         self.navigator.release_waiters()
 

@@ -31,14 +31,16 @@ IMAGES = os.path.join(ROOT, os.environ.get("PAGE_SCREENSHOTS", os.path.join("bui
 class PageSim(SimReads, ServerProcess):
     """``flask-move-server --sim`` for the page: its own master, a copy of the demo waypoints, a token if asked."""
 
-    def __init__(self, folder, token=None, port=0, extra_config=""):
+    def __init__(self, folder, token=None, port=0, extra_config="", world=None, speed_factor=SPEED_FACTOR):
+        """``world``: the simulated world's map YAML (default: the demo flat)."""
         self.folder, self.token = folder, token
         self.master_uri = "http://127.0.0.1:{}".format(free_port())
         self.waypoints = folder / "waypoints.yaml"
         if not self.waypoints.exists():
             shutil.copy(DEMO_WAYPOINTS, str(self.waypoints))
         config = folder / "sim.yaml"
-        config.write_text("sim:\n  speed_factor: {}\n{}".format(SPEED_FACTOR, extra_config))
+        world_line = "  map: {}\n".format(world) if world else ""
+        config.write_text("sim:\n  speed_factor: {}\n{}{}".format(speed_factor, world_line, extra_config))
         env = {"ROS_MASTER_URI": self.master_uri, "ROS_HOME": str(folder), "ROS_LOG_DIR": str(folder / "log"),
                "ROS_IP": "127.0.0.1"}
         if token:

@@ -262,11 +262,7 @@ class MapService:
             raise ModesOff("This server does not start the navigation stack (modes.stack: none), so it cannot "
                            "\"then\" switch to the map; save it without \"then\" and start navigation on it "
                            "with your own launch file.")
-        self.catalogue.refuse_case_twin(name)
-        self._refuse_configured_name(name)
-        if not overwrite and self.catalogue.exists(name):
-            raise MapExists("A map named {!r} is already saved; send \"overwrite\": true to replace it, "
-                            "or pick another name.".format(name))
+        self.check_new_name(name, overwrite)
         _, grid = self.source.latest(self.save_timeout)
         with self._save_lock:
             first = not self.catalogue.names()
@@ -281,6 +277,18 @@ class MapService:
         if then:
             result.update(self._switch_to(name, here))
         return result
+
+    def check_new_name(self, name, overwrite=False):
+        """The checked ``name`` a map may be saved as now: BadMapName, MapConfigured, MapExists (unless
+        ``overwrite``) say why not. Also asked before an exploration starts, so a taken name is refused
+        before the robot moves rather than after it mapped the flat."""
+        name = check_map_name(name)
+        self.catalogue.refuse_case_twin(name)
+        self._refuse_configured_name(name)
+        if not overwrite and self.catalogue.exists(name):
+            raise MapExists("A map named {!r} is already saved; send \"overwrite\": true to replace it, "
+                            "or pick another name.".format(name))
+        return name
 
     def _switches_modes(self):
         return self.modes is not None and self.modes.runs_stack

@@ -1,0 +1,170 @@
+"""Exploring a flat from nothing, in the simulation: ``POST /explore`` on a real ``--sim`` server.
+
+Each world is a real ``flask-move-server --sim`` process (its own ROS master) whose simulated world
+is one of ``tests/explore_worlds.py`` or the demo flat. The robot knows nothing of it: the explorer
+switches to mapping, drives to frontiers of the growing SLAM map through the move_base stand-in
+(which obeys the robot's own DWA and move_base files), comes back, saves the map and navigates on
+it. What a user would check is checked against the world's own map: how much of the floor a robot
+of this size can reach is known in the saved map (at least 95 %), where the robot stands at the end
+(within 0.3 m of where it began), the mode. A room behind a gap narrower than the robot is reported
+unreachable, not looped on. ``/stop`` and the e-stop end it at once and the robot stands.
+"""
+
+import math
+import os
+import time
+
+import numpy as np
+import pytest
+
+from flask_move_server.explore import frontiers
+from flask_move_server.maps import mapfile
+from tests import explore_worlds
+from tests.conftest import ROOT, wait_for
+from tests.page_browser import PageSim
+
+RADIUS = 0.15  # sim.robot_radius's default: what the explorer and the move_base stand-in keep from walls
+EXPLORE_WAIT = 420  # s: the longest world at speed 4 takes under 2 minutes here
+DEMO = os.path.join(ROOT, "config", "maps", "demo.yaml")
+
+
+def explore(sim, body, expect=202):
+    r = sim.post("/explore", body, timeout=30)
+    assert r.status_code == expect, r.text
+    return r.json()
+
+
+def exploration(sim):
+    return sim.get("/explore").json()["exploration"]
+
+
+def finished(sim, timeout=EXPLORE_WAIT):
+    """The exploration once it ended (done, failed or canceled)."""
+    wait_for(lambda: exploration(sim)["state"] in ("done", "failed", "canceled"), timeout=timeout,
+             message="the exploration to end", interval=1.0)
+    return exploration(sim)
+
+
+def true_pose(sim):
+    return sim.status()["sim"]["true_pose"]
+
+
+def coverage(world_yaml, saved_yaml, start=(0.0, 0.0)):
+    """The share of the floor a robot of RADIUS can reach from ``start`` that the saved map knows as free."""
+    truth, saved = mapfile.load(world_yaml), mapfile.load(saved_yaml)
+    reach = frontiers.reachable_free(truth, start, RADIUS)
+    rows, cols = np.nonzero(reach)
+    xs = truth.origin_x + (cols + 0.5) * truth.resolution
+    ys = truth.origin_y + (rows + 0.5) * truth.resolution
+    scols = np.floor((xs - saved.origin_x) / saved.resolution).astype(int)
+    srows = np.floor((ys - saved.origin_y) / saved.resolution).astype(int)
+    inside = (scols >= 0) & (scols < saved.width) & (srows >= 0) & (srows < saved.height)
+    known = frontiers.as_array(saved)
+    free = np.zeros(len(xs), dtype=bool)
+    free[inside] = (known[srows[inside], scols[inside]] >= 0) & (known[srows[inside], scols[inside]] < 50)
+    return free.sum() / float(len(xs))
+
+
+def assert_explored(sim, world_yaml, name, start=(0.0, 0.0)):
+    done = finished(sim)
+    assert done["state"] == "done", done
+    assert done["map"] == name
+    wait_for(lambda: sim.get("/mode").json()["state"] == "running", timeout=60, message="navigation on the map")
+    mode = sim.get("/mode").json()
+    assert (mode["mode"], mode["map"]) == ("navigation", name), mode
+    here = true_pose(sim)
+    assert math.hypot(here["x"] - start[0], here["y"] - start[1]) <= 0.3, here
+    share = coverage(world_yaml, str(sim.folder / "maps" / (name + ".yaml")), start)
+    assert share >= 0.95, "only {:.1%} of the reachable floor is in the saved map".format(share)
+    return done
+
+
+@pytest.fixture(scope="module")
+def worlds(tmp_path_factory):
+    return tmp_path_factory.mktemp("worlds")
+
+
+@pytest.mark.parametrize("world", ["hall", "rooms", "dead_end"])
+def test_a_world_is_explored_from_nothing_saved_and_navigated_on(world, worlds, tmp_path):
+    path = explore_worlds.write(worlds, world)
+    sim = PageSim(tmp_path, world=path)
+    try:
+        started = explore(sim, {"save_as": world})["exploration"]
+        assert started["state"] == "starting" and started["save_as"] == world
+        done = assert_explored(sim, path, world)
+        assert done["goals"] >= 1 and done["frontiers"] == 0
+    finally:
+        sim.close()
+
+
+def test_a_room_behind_a_gap_narrower_than_the_robot_is_unreachable_not_looped_on(worlds, tmp_path):
+    path = explore_worlds.write(worlds, "narrow")
+    sim = PageSim(tmp_path, world=path)
+    try:
+        explore(sim, {"save_as": "narrow"})
+        done = assert_explored(sim, path, "narrow")
+        assert done["unreachable"] >= 1, done
+        assert "too narrow" in done["message"]
+        assert done["goals"] <= 15, "it kept sending goals at the gap: {}".format(done)
+    finally:
+        sim.close()
+
+
+@pytest.fixture(scope="module")
+def demo(tmp_path_factory):
+    sim = PageSim(tmp_path_factory.mktemp("explore_demo"))
+    yield sim
+    sim.close()
+
+
+def test_stop_ends_exploring_at_once_the_robot_stands_and_the_map_stays_unsaved(demo):
+    explore(demo, {"save_as": "halfway"})
+    wait_for(lambda: exploration(demo)["goals"] >= 1 and exploration(demo)["state"] == "exploring", timeout=60,
+             message="a first frontier goal")
+    time.sleep(1.0)  # under way
+    r = demo.post("/stop")
+    assert r.status_code == 200, r.text
+    ended = exploration(demo)
+    assert ended["state"] == "canceled" and "Stopped" in ended["message"], ended
+    assert ended["map"] is None
+    assert_stands(demo)
+    assert demo.get("/mode").json()["mode"] == "mapping"
+    assert not (demo.folder / "maps" / "halfway.yaml").exists()
+
+
+def test_the_estop_ends_exploring_and_the_robot_stands(demo):
+    explore(demo, {"save_as": "halfway", "overwrite": True})
+    wait_for(lambda: exploration(demo)["goals"] >= 1, timeout=60, message="a first frontier goal")
+    assert demo.post("/estop").status_code == 200
+    try:
+        ended = exploration(demo)
+        assert ended["state"] == "canceled" and "e-stop" in ended["message"], ended
+        assert_stands(demo)
+        refused = explore(demo, {"save_as": "later"}, expect=409)
+        assert refused["error"] == "estop_latched"
+    finally:
+        assert demo.post("/estop/release").status_code == 200
+
+
+def test_the_demo_flat_is_explored_and_a_taken_name_is_refused_before_the_robot_moves(demo):
+    wait_for(lambda: not demo.status()["estop"]["latched"], timeout=10, message="the e-stop released")
+    start = true_pose(demo)
+    explore(demo, {"save_as": "flat"})
+    assert_explored(demo, DEMO, "flat", start=(start["x"], start["y"]))
+    before = true_pose(demo)
+    refused = explore(demo, {"save_as": "flat"}, expect=409)
+    assert refused["error"] == "map_exists"
+    assert exploration(demo)["state"] == "done"  # the last one, untouched
+    time.sleep(1.0)
+    after = true_pose(demo)
+    assert math.hypot(after["x"] - before["x"], after["y"] - before["y"]) < 0.01
+    assert demo.get("/mode").json()["mode"] == "navigation"
+
+
+def assert_stands(sim, seconds=1.0):
+    """The robot comes to rest within a second and then does not move."""
+    time.sleep(0.5)
+    a = true_pose(sim)
+    time.sleep(seconds)
+    b = true_pose(sim)
+    assert math.hypot(b["x"] - a["x"], b["y"] - a["y"]) < 0.01 and abs(b["yaw"] - a["yaw"]) < 0.02, (a, b)

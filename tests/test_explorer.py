@@ -1,0 +1,268 @@
+"""The explorer's rules, over stand-ins for the facade, the mode manager and the map service.
+
+The frontier search is the real one (``explore/frontiers.py``) on small grids; what move_base
+does with each goal is scripted here, so each rule can be driven to its edge: a goal move_base
+aborts is given up (blacklisted) and the next frontier is tried; a goal the explorer replaced
+itself is not; a stop that comes while a goal is being sent cancels that goal too; a mode switch
+by someone else ends it; a taken name, the e-stop and a run under way are refused before
+anything moves. The sim tests (test_explore_sim.py) drive the same code through the real stack.
+"""
+
+import threading
+import time
+
+import pytest
+
+from flask_move_server.errors import EStopLatched, ExploreConflict, MapExists, NoPose
+from flask_move_server.explore.explorer import Explorer
+from flask_move_server.geometry import Pose2D
+from flask_move_server.maps.mapfile import Grid
+from tests.conftest import wait_for
+
+RES = 0.1
+
+
+def grid(rows):
+    """A Grid from text rows, top row first: '#' occupied, '.' free, '?' unknown."""
+    values = {"#": 100, ".": 0, "?": -1}
+    height, width = len(rows), len(rows[0])
+    cells = bytearray()
+    for row in reversed(rows):
+        cells += bytes(values[c] & 0xFF for c in row)
+    return Grid(width, height, RES, 0.0, 0.0, bytes(cells))
+
+
+# A room 2 m x 1 m known; unknown beyond its open left and right ends (two frontiers).
+ROOM = ["#" * 40] + ["?" * 5 + "." * 30 + "?" * 5] * 10 + ["#" * 40]
+# The same room fully known: closed at both ends.
+CLOSED = ["#" * 40] + ["#" + "." * 38 + "#"] * 10 + ["#" * 40]
+
+
+class Modes:
+    def __init__(self, mode="navigation"):
+        self.mode, self.runs_stack, self.switches = mode, True, []
+        self.leaving = []
+
+    def status(self):
+        return {"mode": self.mode, "state": "running", "map": None}
+
+    def switch(self, mode, map_name=None, pose=None):
+        for callback in self.leaving:
+            callback({"mode": mode})
+        self.switches.append(mode)
+        self.mode = mode
+        return self.status()
+
+    def wait(self, timeout):
+        return True
+
+    def when_leaving_running(self, callback):
+        self.leaving.append(callback)
+
+
+class Source:
+    def __init__(self, g):
+        self.grid = g
+
+    def current(self):
+        return 1, self.grid
+
+    def latest(self, timeout):
+        return self.current()
+
+
+class Store:
+    def __init__(self, path):
+        self.path = path
+
+
+class Maps:
+    save_timeout = 1.0
+
+    def __init__(self, g, taken=()):
+        self.source, self.taken, self.saved = Source(g), set(taken), []
+        self.store, self.marks = Store("single.yaml"), Store("mapping.waypoints.yaml")
+
+    def check_new_name(self, name, overwrite=False):
+        if name in self.taken and not overwrite:
+            raise MapExists("taken")
+        return name
+
+    def save(self, name, overwrite=False, then=None, here=None):
+        self.saved.append((name, then))
+        return {"status": "ok"}
+
+
+class EStop:
+    latched = False
+
+
+class Robot:
+    """Goals end as ``outcomes`` says, in order (then "active" for good); the robot stands at (1.8, 0.5)."""
+
+    def __init__(self, outcomes=()):
+        self.outcomes = list(outcomes)
+        self.goals, self.canceled, self.ends = [], [], {}
+        self.shutting_down, self.runs, self.estop = False, None, EStop()
+        self.before_send = None
+        self.lock = threading.Lock()
+
+    def refuse_motion(self, what):
+        if self.estop.latched:
+            raise EStopLatched("e-stop")
+
+    def current_pose(self):
+        return Pose2D(1.8, 0.55, 0.0)
+
+    def run_goto(self, goal):
+        if self.before_send:
+            self.before_send()
+        with self.lock:
+            self.goals.append(goal)
+            seq = len(self.goals)
+            self.ends[seq] = self.outcomes.pop(0) if self.outcomes else ("active", None)
+            return seq
+
+    def goal_end(self, seq, timeout):
+        with self.lock:
+            state = self.ends.get(seq, ("active", None))
+        if state[0] == "active":
+            time.sleep(min(timeout, 0.02))
+        return state
+
+    def cancel_goal(self, seq):
+        self.canceled.append(seq)
+        with self.lock:
+            if self.ends.get(seq, ("active",))[0] == "active":
+                self.ends[seq] = ("preempted", "canceled")
+
+
+def explorer(robot, maps, modes=None, **kw):
+    return Explorer(robot, modes or Modes(), maps, radius=0.15, progress_timeout=kw.pop("patience", 30.0), **kw)
+
+
+def ended(x, timeout=10):
+    wait_for(lambda: x.current()["state"] in ("done", "failed", "canceled"), timeout=timeout, message="the end")
+    return x.current()
+
+
+def test_an_aborted_goal_is_given_up_and_the_other_frontier_is_tried_then_it_is_done():
+    robot = Robot([("aborted", "no path"), ("aborted", "no path")] + [("succeeded", None)] * 3)
+    maps = Maps(grid(ROOM))
+    x = explorer(robot, maps)
+    x.start("flat")
+    done = ended(x)
+    first, second = robot.goals[0].pose, robot.goals[1].pose
+    assert abs(first.x - second.x) > 1.0, "the aborted frontier was tried again"
+    assert done["state"] == "done" and maps.saved == [("flat", True)]
+    assert done["goals"] == 2 and len(robot.goals) == 3  # two frontiers given up, then the way home
+
+
+def test_a_closed_room_is_done_at_once_and_the_robot_comes_home():
+    robot = Robot([("succeeded", None)])
+    maps = Maps(grid(CLOSED))
+    modes = Modes()
+    x = explorer(robot, maps, modes)
+    x.start("flat", then="idle")
+    done = ended(x)
+    assert done["state"] == "done" and done["frontiers"] == 0
+    assert modes.switches == ["mapping", "idle"]
+    assert len(robot.goals) == 1  # home only
+    assert "whole reachable flat" in done["message"]
+
+
+def test_a_replaced_goal_is_not_given_up():
+    robot = Robot()  # goals stay active
+    maps = Maps(grid(ROOM))
+    x = explorer(robot, maps)
+    x.start("flat")
+    wait_for(lambda: len(robot.goals) >= 1, message="a goal")
+    target = robot.goals[0].pose
+    # the frontier the robot drives to is seen: that end of the room is closed now
+    rows = [r[:20] + r[20:].replace("?", "#") if target.x > 2.0 else r[:20].replace("?", "#") + r[20:]
+            for r in ROOM]
+    maps.source.grid = grid(rows)
+    wait_for(lambda: len(robot.goals) >= 2, message="the next goal")
+    assert robot.canceled == []  # replaced by the next goal, not canceled
+    assert abs(robot.goals[1].pose.x - target.x) > 1.0
+    robot.ends[2] = ("succeeded", None)
+    x.cancel("test over", wait_for_send=False)
+
+
+def test_stop_while_a_goal_is_being_sent_cancels_that_goal():
+    robot = Robot()
+    maps = Maps(grid(ROOM))
+    x = explorer(robot, maps)
+    robot.before_send = lambda: threading.Thread(target=x.cancel, args=("Stopped (POST /stop).", False)).start() \
+        or time.sleep(0.1)
+    x.start("flat")
+    done = ended(x)
+    assert done["state"] == "canceled" and done["message"].startswith("Stopped (POST /stop).")
+    wait_for(lambda: robot.canceled == [1], timeout=2, message="the goal sent just after the stop canceled")
+    assert len(robot.goals) == 1 and maps.saved == []
+
+
+def test_a_mode_switch_by_someone_else_ends_it_unsaved():
+    robot = Robot()
+    maps, modes = Maps(grid(ROOM)), Modes()
+    x = explorer(robot, maps, modes)
+    x.start("flat")
+    wait_for(lambda: robot.goals, message="a goal")
+    modes.switch("idle")
+    done = ended(x)
+    assert done["state"] == "canceled" and "switched to idle" in done["message"]
+    assert maps.saved == []
+
+
+def test_no_progress_gives_the_frontier_up():
+    robot = Robot()
+    maps = Maps(grid(ROOM))
+    x = explorer(robot, maps, patience=0.3)
+    x.start("flat")
+    wait_for(lambda: len(robot.goals) >= 2, message="a second goal after no progress")
+    assert 1 in robot.canceled
+    assert abs(robot.goals[0].pose.x - robot.goals[1].pose.x) > 1.0
+    x.cancel("test over", wait_for_send=False)
+
+
+def test_out_of_time_it_returns_and_saves_what_it_has():
+    robot = Robot()
+    maps = Maps(grid(ROOM))
+    x = explorer(robot, maps)
+    x.start("flat", max_minutes=0.01)
+    wait_for(lambda: x.current()["state"] == "returning", message="returning")
+    robot.ends[len(robot.goals)] = ("succeeded", None)
+    done = ended(x)
+    assert done["state"] == "done" and "after 0.01 minutes" in done["message"]
+
+
+@pytest.mark.parametrize("why", ["taken", "estop", "run", "exploring"])
+def test_refused_before_anything_moves(why):
+    robot, maps, modes = Robot(), Maps(grid(ROOM), taken={"flat"} if why == "taken" else ()), Modes()
+    x = explorer(robot, maps, modes)
+    if why == "estop":
+        robot.estop.latched = True
+    if why == "run":
+        robot.runs = type("Runs", (), {"active": lambda self: {"id": 3, "route": "rounds"}})()
+    if why == "exploring":
+        x.start("other")
+        wait_for(lambda: robot.goals, message="a goal")
+        modes.switches.clear()
+    expected = {"taken": MapExists, "estop": EStopLatched, "run": ExploreConflict, "exploring": ExploreConflict}
+    with pytest.raises(expected[why]):
+        x.start("flat")
+    assert modes.switches == []
+    if why == "exploring":
+        x.cancel("test over", wait_for_send=False)
+    else:
+        assert robot.goals == []
+
+
+def test_no_pose_on_the_new_map_fails_with_the_reason():
+    robot = Robot()
+    robot.current_pose = lambda: (_ for _ in ()).throw(NoPose("no tf map -> base_link"))
+    maps = Maps(grid(ROOM))
+    x = explorer(robot, maps)
+    x.start("flat")
+    done = ended(x)
+    assert done["state"] == "failed" and "no tf map" in done["message"]
