@@ -3,10 +3,14 @@ the map's name as Save as… does and starts an exploration; the strip under the
 plain words as its `explore` events come, with Stop (POST /stop), and how it ended; the spot it heads
 for is ringed on the map. Refusals are in the page's words.
 
-The server is the real app and HTTP server, in this process, with the fake explorer behind it
-(tests/fake_explorer.py), which each test moves on state by state: every word the strip can say is
-seen, without minutes of simulated exploring.
+Two servers. The words of every state: the real app and HTTP server in this process with the fake
+explorer behind it (tests/fake_explorer.py), moved on state by state by each test, so each sentence is
+seen without minutes of exploring. Then the owner's story on a real ``--sim`` server and its explorer:
+Explore, a name, the robot maps the demo flat by itself, Stop ends it where it is; Explore again and
+the flat is saved and navigated on.
 """
+
+import time
 
 import pytest
 
@@ -16,10 +20,10 @@ from flask_move_server.errors import ExploreConflict  # noqa: E402
 from flask_move_server.events import EventBus  # noqa: E402
 from flask_move_server.waypoints.store import WaypointStore  # noqa: E402
 from flask_move_server.web import create_app  # noqa: E402
-from tests.conftest import hardened  # noqa: E402
+from tests.conftest import hardened, wait_for  # noqa: E402
 from tests.fake_explorer import FakeExplorer  # noqa: E402
 from tests.fake_robot import FakeRobot  # noqa: E402
-from tests.page_browser import DESKTOP, RequestLog, live, screenshot  # noqa: E402
+from tests.page_browser import DESKTOP, PageSim, RequestLog, live, screenshot  # noqa: E402
 from tests.robot_fixtures import make_config  # noqa: E402
 
 API_WORDS = ("POST ", "GET /", "PUT /", "robotctl", "curl", "Field '", "explore_conflict", "save_as")
@@ -101,7 +105,6 @@ def test_explore_asks_for_the_name_then_the_strip_follows_it_to_the_saved_map(se
     title, detail = strip_says(page, "Exploring: 3 places left to look at")
     assert detail.startswith("42 m² mapped · 1 place out of reach · 2:1"), detail
     page.wait_for_function("document.getElementById('map').dataset.exploreTarget === '1.5,0.5'")
-    screenshot(page, "phone-explore")
     server.explorer.advance(state="exploring", frontiers=12, elapsed=135)
     strip_says(page, "Exploring: 12 places left to look at")  # the longest it gets, whole on a phone
     server.explorer.advance(state="exploring", frontiers=1, unreachable=0, elapsed=140)
@@ -115,7 +118,6 @@ def test_explore_asks_for_the_name_then_the_strip_follows_it_to_the_saved_map(se
     assert strip_says(page, "Done: saved attic") == ("Done: saved attic", "Now navigating on it · 42 m² mapped in 3:05")
     assert page.get_attribute("#explore", "data-state") == "done" and page.is_visible("#explore-close")
     assert page.is_visible("#explore-start")
-    screenshot(page, "phone-explore-done")
     page.locator("#explore-close").tap()
     page.wait_for_selector("#explore", state="hidden")
 
@@ -131,7 +133,6 @@ def test_stop_on_the_strip_stops_the_robot_and_ends_it(server, page):
     assert ("stop",) in server.robot.calls
     assert server.explorer.current()["state"] == "canceled"
     page.wait_for_function("document.getElementById('stop').dataset.outcome === 'stopped'")
-    screenshot(page, "phone-explore-stopped")
 
 
 def test_a_failure_is_told_in_red_with_the_robots_reason(server, page):
@@ -199,8 +200,8 @@ def test_a_page_opened_later_shows_the_one_under_way_but_not_an_old_ending(serve
         opened.context.close()  # its event stream ends with its connection
 
 
-@pytest.mark.parametrize("device, name", [(LANDSCAPE, "phone-explore-landscape"), (DESKTOP, "desktop-explore")])
-def test_the_strip_fits_a_phone_on_its_side_and_a_desktop(server, page, browser, device, name):
+@pytest.mark.parametrize("device", [LANDSCAPE, DESKTOP], ids=["phone on its side", "desktop"])
+def test_the_strip_fits_a_phone_on_its_side_and_a_desktop(server, page, browser, device):
     server.explorer.refusal = None
     explore(page, "attic")
     server.explorer.advance(state="exploring", frontiers=12, known_m2=142.0, goals=25, unreachable=3,
@@ -212,6 +213,88 @@ def test_the_strip_fits_a_phone_on_its_side_and_a_desktop(server, page, browser,
     assert detail.startswith("142 m² mapped · 3 places out of reach · 1:02:0"), detail
     strip_box, stop_box = other.locator("#explore").bounding_box(), other.locator("#explore-stop").bounding_box()
     assert stop_box["x"] + stop_box["width"] <= strip_box["x"] + strip_box["width"] + 0.5
-    screenshot(other, name)
     assert other.errors == []
     other.context.close()
+
+
+# the real explorer on the simulated demo flat ----------------------------------------------------
+
+EXPLORE_WAIT = 420  # s: the demo flat takes about two minutes at the sim's speed (tests/test_explore_sim.py)
+
+
+@pytest.fixture(scope="module")
+def sim(tmp_path_factory):
+    server = PageSim(tmp_path_factory.mktemp("page_explore_sim"))
+    yield server
+    server.close()
+
+
+@pytest.fixture(scope="module")
+def sim_page(sim, browser):
+    page = browser.open(sim.url + "/")
+    live(page)
+    page.wait_for_function("document.getElementById('map').dataset.imageRect")
+    page.locator("#tabs button[data-tab=maps]").tap()
+    yield page
+    assert page.errors == []
+
+
+def exploring(sim):
+    return sim.get("/explore").json()["exploration"]
+
+
+def stands(sim, seconds=1.0):
+    """The simulated robot comes to rest and then does not move for ``seconds``."""
+    time.sleep(0.5)
+    a = sim.status()["sim"]["true_pose"]
+    time.sleep(seconds)
+    b = sim.status()["sim"]["true_pose"]
+    return abs(a["x"] - b["x"]) < 0.01 and abs(a["y"] - b["y"]) < 0.01
+
+
+def test_on_the_sim_explore_maps_the_flat_and_stop_ends_it_where_it_is(sim, sim_page, browser):
+    page = sim_page
+    page.answers.append("halfway")
+    page.locator("#explore-start").tap()
+    page.wait_for_function("document.getElementById('explore').dataset.state === 'exploring'", timeout=60000)
+    page.wait_for_function("document.getElementById('mode').dataset.mode === 'mapping'")
+    wait_for(lambda: exploring(sim)["goals"] >= 2 and exploring(sim)["known_m2"] > 15, timeout=120,
+             message="the map to grow over two frontier goals", interval=0.5)
+    page.wait_for_function("document.getElementById('map').dataset.exploreTarget !== ''")
+    title, detail = strip(page)
+    assert title.endswith(" left to look at") or title == "Exploring: looking for places not seen yet", title
+    assert " m² mapped · " in detail, detail
+    screenshot(page, "phone-explore")
+    for device, name in ((LANDSCAPE, "phone-explore-landscape"), (DESKTOP, "desktop-explore")):
+        other = browser.open(sim.url + "/", device=device)
+        live(other)
+        other.wait_for_function("document.getElementById('map').dataset.imageRect")
+        other.wait_for_function("document.getElementById('explore').dataset.state === 'exploring'")
+        other.wait_for_timeout(1500)  # the robot drawn where it is, the plan in
+        screenshot(other, name)
+        assert other.errors == []
+        other.context.close()
+
+    page.locator("#explore-stop").tap()
+    assert strip_says(page, "Exploring stopped")[1] == "STOP was pressed. The map so far is not saved (Maps → Save as…)"
+    assert exploring(sim)["state"] == "canceled" and exploring(sim)["map"] is None
+    assert stands(sim)
+    assert sim.get("/mode").json()["mode"] == "mapping"  # the map made so far is there to save
+    screenshot(page, "phone-explore-stopped")
+    page.locator("#explore-close").tap()
+
+
+def test_on_the_sim_explore_goes_on_to_the_saved_map_and_navigates_on_it(sim, sim_page):
+    page = sim_page
+    page.answers.append("flat")
+    page.locator("#explore-start").tap()
+    page.wait_for_function("document.getElementById('explore').dataset.state === 'exploring'", timeout=60000)
+    page.wait_for_function("document.getElementById('explore').dataset.state === 'done'", timeout=EXPLORE_WAIT * 1000)
+    title, detail = strip(page)
+    assert title == "Done: saved flat" and detail.startswith("Now navigating on it · ") and " m² mapped in " in detail
+    page.wait_for_function("document.getElementById('mode').textContent === 'navigating on flat'", timeout=60000)
+    page.wait_for_selector('#maps li[data-name="flat"][data-active="1"]')
+    assert page.get_attribute("#map", "data-explore-target") == ""
+    screenshot(page, "phone-explore-done")
+    page.locator("#explore-close").tap()
+    page.wait_for_selector("#explore", state="hidden")

@@ -18,6 +18,7 @@ let receivedAt = 0;  // performance.now() when `shown` came: its clock goes on f
 const keyOf = (e) => e.save_as + "@" + e.started;
 const plural = (n, one, many) => n + " " + (n === 1 ? one : many);
 const capital = (text) => text.charAt(0).toUpperCase() + text.slice(1);
+const firstSentence = (text) => (text || "").split(". ")[0];  // the why; the rest is advice, said below in the page's words
 
 /** "2:10", "1:02:10": how long it has been going. */
 export function clock(seconds) {
@@ -40,7 +41,7 @@ export function exploreWords(e, elapsed = e.elapsed) {
     case "done": return ["Done: saved " + (e.map || e.save_as),
       progress(e.then === "idle" ? "The robot is idle now" : "Now navigating on it", mapped + " in " + clock(elapsed))];
     case "failed": return ["Exploring failed", withoutApi(e.message || "The robot gave no reason.")];
-    case "canceled": return ["Exploring stopped", capital(endedBy(e.message) || sentence(e.message || "")) +
+    case "canceled": return ["Exploring stopped", capital(endedBy(e.message) || sentence(firstSentence(e.message))) +
       ". The map so far is not saved (Maps → Save as…)"];
     default: return [e.state, withoutApi(e.message || "")];
   }

@@ -29,10 +29,7 @@ const WORDS = {
   run_conflict: (e) => /^Run \d+ \(/.test(e.message) ?  // "Run 3 (rounds) is running: cancel it first"
     "Another route is running: press Cancel on its strip at the top first, or wait until it ends." :
     "The route has moved on meanwhile (it ended, or is no longer paused): see its strip.",
-  explore_conflict: (e) => /does not explore/.test(e.message) ? "This robot cannot explore by itself (its server " +
-    "has no explorer): Start mapping and drive it instead." : /\brun\b|route/i.test(e.message) ?
-    "A route is running: press Cancel on its strip at the top first, or wait until it ends." :
-    "The robot is exploring already: its strip at the top says how far it got (Stop ends it).",
+  explore_conflict: (e) => (EXPLORE_REFUSALS.find(([pattern]) => pattern.test(e.message)) || [0, withoutApi(e.message)])[1],
   modes_off: () => "This robot's navigation is started outside its server, so the page cannot switch it to mapping.",
   unknown_run: () => "That run of a route is no longer kept on the robot.",
   unknown_route: () => "That route is gone (deleted on another phone?).",
@@ -43,6 +40,16 @@ const WORDS = {
       (all, place, routes, it) => "The place " + place + " is a stop of " + routes + ": take it out (Routes → Edit) " +
         "or delete " + (it === "it" ? "the route" : "those routes") + " first."),
 };
+
+// Why an exploration cannot start, by the server's sentence (explore/explorer.py, web/explore.py).
+const EXPLORE_REFUSALS = [
+  [/^Run \d+ /, "A route is running: press Cancel on its strip at the top first, or wait until it ends."],
+  [/already exploring/, "The robot is exploring already: its strip at the top says how far it got (Stop ends it)."],
+  [/does not run the navigation stack/, "This robot's mapping is started outside its server, so it cannot explore " +
+    "by itself: start mapping on the robot and drive it with the joystick."],
+  [/does not explore/, "This robot's server cannot explore by itself: Start mapping and drive it with the joystick."],
+  [/shutting down/, "The robot's server is stopping: try again once it is back."],
+];
 
 // A route's fields as the Routes panel labels them (the server names the JSON field).
 const ROUTE_FIELDS = {waypoints: "The stops", loops: "Loops", dwell: "Wait at each place", on_failure: "If a place " +
