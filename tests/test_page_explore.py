@@ -20,6 +20,7 @@ from flask_move_server.errors import ExploreConflict  # noqa: E402
 from flask_move_server.events import EventBus  # noqa: E402
 from flask_move_server.waypoints.store import WaypointStore  # noqa: E402
 from flask_move_server.web import create_app  # noqa: E402
+from flask_move_server.web.events import StreamGate  # noqa: E402
 from tests.conftest import hardened, wait_for  # noqa: E402
 from tests.fake_explorer import FakeExplorer  # noqa: E402
 from tests.fake_robot import FakeRobot  # noqa: E402
@@ -198,6 +199,26 @@ def test_a_page_opened_later_shows_the_one_under_way_but_not_an_old_ending(serve
     for opened in (other, late):
         assert opened.errors == []
         opened.context.close()  # its event stream ends with its connection
+
+
+def test_a_page_that_polls_follows_it_too(server, browser, tmp_path):
+    """No stream to spare (server.max_streams taken): the page reads /status, and /explore with the mode."""
+    config = make_config("page_explore_polled", tmp_path)
+    app = create_app(config, server.robot, WaypointStore(config.waypoints.file), events=server.bus,
+                     explorer=server.explorer)
+    app.extensions["flask_move_server"]["streams"] = StreamGate(max_streams=0)
+    server.explorer.start("cellar")
+    server.explorer.advance(state="exploring", frontiers=5, known_m2=20.0, goals=2, target=[1.0, 1.0])
+    with hardened(app, config.server) as (_, url):
+        polled = browser.open(url + "/")
+        try:
+            polled.wait_for_function("document.body.dataset.connection === 'polling'", timeout=20000)
+            strip_says(polled, "Exploring: 5 places left to look at")
+            server.explorer.advance(state="returning")
+            strip_says(polled, "Coming back to where it started")
+            assert polled.errors == []
+        finally:
+            polled.context.close()
 
 
 @pytest.mark.parametrize("device", [LANDSCAPE, DESKTOP], ids=["phone on its side", "desktop"])
