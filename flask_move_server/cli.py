@@ -120,7 +120,8 @@ class Server:
         from flask_move_server.explore.explorer import Explorer
 
         cfg = self.config
-        radius = cfg.sim.robot_radius if cfg.sim.enabled else cfg.explore.robot_radius
+        # Room kept from walls: the sim's robot and its costmap's safety margin, as the stand-in plans with.
+        radius = cfg.sim.robot_radius + cfg.sim.safety_margin if cfg.sim.enabled else cfg.explore.robot_radius
         explorer = Explorer(robot, self.modes, self.maps, radius, events=self.events,
                             progress_timeout=cfg.explore.progress_timeout, start_timeout=cfg.modes.start_timeout)
         stack.callback(explorer.close)

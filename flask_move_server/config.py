@@ -248,7 +248,7 @@ class DiagnosticsConfig:
 class ExploreConfig:
     """The explorer (``POST /explore``): how much room the robot needs, and how long it may get nowhere."""
 
-    robot_radius: float = checked(rules.positive, default=0.15)  # with --sim: sim.robot_radius
+    robot_radius: float = checked(rules.positive, default=0.25)  # --sim: sim.robot_radius + sim.safety_margin
     progress_timeout: float = checked(rules.positive, default=30.0)
 
 

@@ -139,7 +139,11 @@ class SimulatedStack:
         self._parts.append(SimMapping(self._node, self.slam, self._world, cfg.ros.frames, map_topic=sim.map_topic,
                                       odom_topic=cfg.drive.odom_topic, scan_rate=scan_rate,
                                       publish_period=max(0.25, 1.0 / sim.speed_factor)))
-        self._move_base.set_planner(GrowingMapPlanner(self.slam, sim.robot_radius, sim.safety_margin))
+        # One cell more than the body's radius: a wall's corner no beam has hit yet is missing from the SLAM
+        # map, and a path drawn past it at the body's own radius scrapes the true corner and sticks there
+        # (a real move_base keeps off it: its inflation reaches 0.35 m and its local costmap sees the corner).
+        planner = GrowingMapPlanner(self.slam, sim.robot_radius + self.slam.resolution, sim.safety_margin)
+        self._move_base.set_planner(planner)
         self._move_base.serve()
 
     def _take_down(self):
