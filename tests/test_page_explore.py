@@ -187,18 +187,23 @@ def test_a_page_opened_later_shows_the_one_under_way_but_not_an_old_ending(serve
     explore(page, "attic")
     server.explorer.advance(state="exploring", frontiers=2, known_m2=30.0, goals=3, target=[1.0, 1.0])
     strip_says(page, "Exploring: 2 places left to look at")
-    other = browser.open(server.url + "/")
-    live(other)
-    assert strip_says(other, "Exploring: 2 places left to look at")
-    server.explorer.advance(state="done", map="attic")
-    strip_says(other, "Done: saved attic")
-    late = browser.open(server.url + "/")
-    live(late)
-    late.wait_for_timeout(500)
-    assert late.is_hidden("#explore"), "an exploration that ended before the page opened is not news"
-    for opened in (other, late):
-        assert opened.errors == []
-        opened.context.close()  # its event stream ends with its connection
+    opened = []
+    try:
+        other = browser.open(server.url + "/")
+        opened.append(other)
+        live(other)
+        assert strip_says(other, "Exploring: 2 places left to look at")
+        server.explorer.advance(state="done", map="attic")
+        strip_says(other, "Done: saved attic")
+        late = browser.open(server.url + "/")
+        opened.append(late)
+        live(late)
+        late.wait_for_timeout(500)
+        assert late.is_hidden("#explore"), "an exploration that ended before the page opened is not news"
+        assert other.errors == [] and late.errors == []
+    finally:
+        for each in opened:
+            each.context.close()  # its event stream ends with its connection
 
 
 def test_a_page_that_polls_follows_it_too(server, browser, tmp_path):
@@ -228,14 +233,16 @@ def test_the_strip_fits_a_phone_on_its_side_and_a_desktop(server, page, browser,
     server.explorer.advance(state="exploring", frontiers=12, known_m2=142.0, goals=25, unreachable=3,
                             target=[1.0, 1.0], elapsed=3725)
     other = browser.open(server.url + "/", device=device)
-    live(other)
-    other.locator("#tabs button[data-tab=maps]").click()
-    title, detail = strip_says(other, "Exploring: 12 places left to look at")
-    assert detail.startswith("142 m² mapped · 3 places out of reach · 1:02:0"), detail
-    strip_box, stop_box = other.locator("#explore").bounding_box(), other.locator("#explore-stop").bounding_box()
-    assert stop_box["x"] + stop_box["width"] <= strip_box["x"] + strip_box["width"] + 0.5
-    assert other.errors == []
-    other.context.close()
+    try:
+        live(other)
+        other.locator("#tabs button[data-tab=maps]").click()
+        title, detail = strip_says(other, "Exploring: 12 places left to look at")
+        assert detail.startswith("142 m² mapped · 3 places out of reach · 1:02:"), detail  # an hour and 2 minutes
+        strip_box, stop_box = other.locator("#explore").bounding_box(), other.locator("#explore-stop").bounding_box()
+        assert stop_box["x"] + stop_box["width"] <= strip_box["x"] + strip_box["width"] + 0.5
+        assert other.errors == []
+    finally:
+        other.context.close()  # its event stream ends with its connection
 
 
 # the real explorer on the simulated demo flat ----------------------------------------------------
