@@ -1,6 +1,8 @@
 """robotctl map explore against a live server on port 0: the real app served by waitress, the fake
 explorer (tests/fake_explorer.py) behind it, moved on by the test or on a timer."""
 
+import io
+import sys
 import threading
 
 import pytest
@@ -151,3 +153,34 @@ def test_the_progress_line_in_each_state():
     assert client_explore.progress(dict(exp, frontiers=1, goals=1)) == \
         "exploring: 1 frontier left, 42 m² known, 1 goal, 1 unreachable, 2:10"
     assert client_explore.progress(dict(exp, state="saving")) == "saving: saving the map as flat, 2:10"
+
+
+class _Terminal(io.StringIO):
+    def isatty(self):
+        return True
+
+
+class _Answers:
+    """A client answering GET /explore from a list, one a call."""
+
+    def __init__(self, explorations):
+        self.explorations = list(explorations)
+
+    def get(self, path):
+        assert path == "/explore"
+        return {"exploration": self.explorations.pop(0)}
+
+
+def test_on_a_terminal_the_progress_is_one_line_rewritten(monkeypatch, capsys):
+    monkeypatch.setattr(client_explore, "POLL_PERIOD", 0)
+    terminal = _Terminal()
+    monkeypatch.setattr(sys, "stderr", terminal)
+    exp = {"state": "exploring", "frontiers": 3, "known_m2": 42.0, "goals": 5, "unreachable": 1, "elapsed": 130,
+           "save_as": "flat", "then": "navigation", "map": None}
+    later = [dict(exp, frontiers=2, goals=6, elapsed=140), dict(exp, state="done", map="flat", elapsed=150)]
+    assert client_explore.follow_exploration(_Answers(later), exp) == ExitStatus.OK
+    shown = terminal.getvalue()
+    assert shown == ("\r\033[Kexploring: 3 frontiers left, 42 m² known, 5 goals, 1 unreachable, 2:10"
+                     "\r\033[Kexploring: 2 frontiers left, 42 m² known, 6 goals, 1 unreachable, 2:20\n")
+    assert capsys.readouterr().out == ("explored in 2:30: saved the map flat (42 m² known, 5 goals, 1 unreachable); "
+                                       "navigating on it.\n")
