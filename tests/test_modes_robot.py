@@ -115,6 +115,7 @@ def test_map_the_flat_save_it_navigate_on_it_switch_maps_and_stop(robot):
     mapping = switch(server, {"mode": "mapping"})
     assert "move_base" not in mapping["message"], mapping  # running once goals reach mapping's move_base
     assert set(robot.stack()) == MAPPING
+    assert server.get("/health").json()["move_base"] == "ready"  # /goto while mapping, and exploring
     wait_for(lambda: server.get("/map").status_code == 200, timeout=10, message="GET /map to serve the map")
     assert map_size(server) == GMAPPING_SIZE
     mapped = server.get("/map").json()["version"]
