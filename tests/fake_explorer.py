@@ -1,7 +1,8 @@
 """An explorer without a robot, for the web, robotctl and page tests: the Explorer's interface in memory.
 
-``start`` refuses as the real explorer does (a bad map name, a saved name without ``overwrite``, the
-e-stop, an exploration under way, or whatever ``refusal`` a test sets); the test then moves the
+``start`` refuses as the real explorer (explore/explorer.py) does, in its words (a bad map name, a saved
+name without ``overwrite``, the e-stop, an exploration under way, or whatever ``refusal`` a test sets);
+a cancel ends it with the real one's sentence. The test then moves the
 exploration on with ``advance(state=..., frontiers=...)``, or ``play()`` runs a whole one on a timer.
 Every change is an ``explore`` event on the bus, as the real one publishes. ``attach(robot)`` makes a
 fake robot's ``stop`` and e-stop cancel it, as the real facade does.
@@ -48,8 +49,8 @@ class FakeExplorer:
             self._exploration = {
                 "state": "starting", "frontiers": 0, "known_m2": 0.0, "goals": 0, "unreachable": 0, "elapsed": 0.0,
                 "map": None, "message": "Starting mapping.", "save_as": save_as, "then": then,
-                "max_minutes": max_minutes, "started": datetime.datetime.now().astimezone().isoformat(
-                    timespec="seconds"), "target": None}
+                "max_minutes": max_minutes, "return_home": return_home, "target": None,
+                "started": datetime.datetime.now().astimezone().isoformat(timespec="seconds")}
             shown = dict(self._exploration)
         self._publish(shown)
         return shown
@@ -62,8 +63,8 @@ class FakeExplorer:
         if self.estop is not None:
             self.estop.refuse_motion("exploring is")
         if self._exploration is not None and self._exploration["state"] in ACTIVE:
-            raise ExploreConflict("An exploration is under way (to save as {!r}): POST /stop ends it.".format(
-                self._exploration["save_as"]))
+            raise ExploreConflict("The robot is already exploring (to save as {!r}): stop it first (POST /stop), "
+                                  "or wait until it is done (GET /explore).".format(self._exploration["save_as"]))
         if save_as in self.maps and not overwrite:
             raise MapExists("A map named {!r} is already saved; ask to overwrite it, or pick another name."
                             .format(save_as))
@@ -80,12 +81,15 @@ class FakeExplorer:
         with self._lock:
             if self._exploration is None or self._exploration["state"] not in ACTIVE:
                 return False
-        self.advance(state="canceled", message=reason, target=None)
+        self.advance(state="canceled", target=None, message="{} The map made so far stays in mapping mode, unsaved: "
+                     "save it (POST /maps) or explore again.".format(reason.rstrip(".") + "."))
         return True
 
     def advance(self, **changes):
         """The exploration moved on: ``changes`` to its fields, told as an ``explore`` event; the new EXP."""
         with self._lock:
+            if "elapsed" in changes:  # the clock goes on from there
+                self._began = time.monotonic() - changes["elapsed"]
             self._exploration.update(changes, elapsed=changes.get("elapsed", self._elapsed()))
             if changes.get("state") == "done":
                 self.maps.add(self._exploration["save_as"])

@@ -90,8 +90,8 @@ def test_robotctl_stop_cancels_it_and_the_follower_exits_11(live, capsys):
     finally:
         stopper.join()
     last = capsys.readouterr().err.splitlines()[-1]
-    assert last.startswith("robotctl: exploration canceled after 0:00: Stopped ('robotctl stop'). The map made so far "
-                           "is not saved: 'robotctl map save NAME' saves it"), last
+    assert last == ("robotctl: exploration canceled after 0:00: Stopped ('robotctl stop'). The map made so far stays "
+                    "in mapping mode, unsaved: save it ('robotctl map save NAME') or explore again."), last
 
 
 def test_wait_timeout_leaves_it_going(live, capsys):
@@ -111,7 +111,8 @@ def test_one_under_way_is_refused_in_one_line(live, capsys):
     assert robotctl(live.url, "map", "explore", "attic") == ExitStatus.OK
     assert robotctl(live.url, "map", "explore", "cellar") == ExitStatus.ERROR
     err = capsys.readouterr().err
-    assert one_line(err) and "under way" in err and "'robotctl stop' ends it" in err, err
+    assert err == ("robotctl: The robot is already exploring (to save as 'attic'): stop it first ('robotctl stop'), "
+                   "or wait until it is done.\n"), err
 
 
 def test_while_e_stopped_it_is_refused(live, capsys):

@@ -19,7 +19,7 @@ from tests.sse import EventReader
 
 TOKEN = "explore-token"
 EXP_FIELDS = {"state", "frontiers", "known_m2", "goals", "unreachable", "elapsed", "map", "message", "save_as", "then",
-              "max_minutes", "started", "target"}
+              "max_minutes", "return_home", "started", "target"}
 
 
 @pytest.fixture
@@ -147,7 +147,7 @@ def test_a_saved_name_needs_overwrite(client, explorer):
 
 def test_one_at_a_time(client, explorer):
     assert client.post("/explore", json={"save_as": "one"}).status_code == 202
-    assert "under way" in refusal(client.post("/explore", json={"save_as": "two"}), 409, "explore_conflict")
+    assert "already exploring" in refusal(client.post("/explore", json={"save_as": "two"}), 409, "explore_conflict")
     assert client.get("/explore").get_json()["exploration"]["save_as"] == "one"
 
 
@@ -159,7 +159,7 @@ def test_while_e_stopped_it_is_refused(client, explorer):
     client.post("/estop/release")
     assert client.post("/explore", json={"save_as": "two"}).status_code == 202
     assert client.post("/stop").status_code == 200
-    assert client.get("/explore").get_json()["exploration"]["message"] == "Stopped (POST /stop)."
+    assert client.get("/explore").get_json()["exploration"]["message"].startswith("Stopped (POST /stop). The map made")
 
 
 @pytest.mark.parametrize("error, status, code", [

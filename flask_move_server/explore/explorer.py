@@ -139,7 +139,7 @@ class Explorer:
                 if exp is None or not exp.active or exp.state == SAVING:
                     return False
                 self._end(exp, CANCELED, "{} The map made so far stays in mapping mode, unsaved: save it "
-                          "(POST /maps/save) or explore again.".format(reason.rstrip(".") + "."))
+                          "(POST /maps) or explore again.".format(reason.rstrip(".") + "."))
                 return True
 
     def _leaving_mode(self, status):

@@ -14,11 +14,11 @@ import sys
 import time
 
 from flask_move_server.errors import ClientError
+from flask_move_server.explore.exploration import MAX_MINUTES
 from flask_move_server.robotctl.api import ExitStatus
 from flask_move_server.robotctl.text import LiveLine
 
 POLL_PERIOD = 0.5  # s between GET /explore while --wait follows an exploration
-MAX_MINUTES = 240.0  # the robot's own limit (web/explore.py), said before anything is sent
 ACTIVE = ("starting", "exploring", "returning", "saving")
 _EXITS = {"failed": ExitStatus.ABORTED, "canceled": ExitStatus.CANCELED}
 
@@ -103,10 +103,7 @@ def ended_line(exploration):
         return "explored in {}: saved the map {} ({}, {}, {} unreachable); {}.".format(
             took, exploration.get("map") or exploration["save_as"], _known(exploration),
             _count(exploration.get("goals", 0), "goal"), exploration.get("unreachable", 0), then)
-    line = "exploration {} after {}{}".format(exploration["state"], took, ": " + message if message else ".")
-    if exploration["state"] == "canceled":
-        line += " The map made so far is not saved: 'robotctl map save NAME' saves it while the robot maps."
-    return line
+    return "exploration {} after {}{}".format(exploration["state"], took, ": " + message if message else ".")
 
 
 def clock(seconds):
@@ -133,6 +130,8 @@ def _count(n, what):
 _HTTP_WORDS = (
     (re.compile(r"POST /mode \{\"mode\": \"mapping\"\}, then POST /maps \{\"name\": \.\.\.\}"),
      "'robotctl map start', then 'robotctl map save NAME'"),
+    (re.compile(r"save it \(POST /maps(?:/save)?\)"), "save it ('robotctl map save NAME')"),
+    (re.compile(r",? or wait until it is done \(GET /explore\)"), ", or wait until it is done"),
     (re.compile(r"\(POST /stop\)"), "('robotctl stop')"),
     (re.compile(r"POST /stop"), "'robotctl stop'"),
     (re.compile(r"cancel it first \(POST /runs/\d+/cancel\)"), "cancel it first ('robotctl route cancel')"),

@@ -10,14 +10,13 @@ with null. Progress is told as ``explore`` events on ``GET /events`` by the expl
 from flask import Blueprint, current_app, jsonify
 
 from flask_move_server.errors import BadRequest, ExploreConflict, shown
+from flask_move_server.explore.exploration import MAX_MINUTES, THEN
 from flask_move_server.maps.catalogue import check_map_name
 from flask_move_server.web.body import json_object, number, text
 from flask_move_server.web.deadline import FIELD, check_deadline
 
 explore_api = Blueprint("explore", __name__)
 
-THEN = ("navigation", "idle")
-MAX_MINUTES = 240.0  # four hours: a flat is mapped in minutes; past this a robot is lost, not exploring
 DEFAULT_MINUTES = 30.0
 FIELDS = ("save_as", "then", "max_minutes", "return_home", "overwrite", FIELD)
 

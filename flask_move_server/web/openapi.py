@@ -11,6 +11,7 @@ waypoints or state.
 from flask import Blueprint, current_app, jsonify
 
 from flask_move_server import __version__
+from flask_move_server.explore import exploration
 from flask_move_server.maps.catalogue import MAP_NAME_RULE
 from flask_move_server.missions import route as routes
 from flask_move_server.missions import run as runs
@@ -230,8 +231,9 @@ def _missions():
 
 def _explore():
     """``/explore`` (docs/api.md, "Exploration"): map the flat by itself, come back, save the map."""
-    exploration = _object({
-        "state": {"enum": ["starting", "exploring", "returning", "saving", "done", "failed", "canceled"]},
+    exp = _object({
+        "state": {"enum": [exploration.STARTING, exploration.EXPLORING, exploration.RETURNING, exploration.SAVING,
+                           *exploration.ENDED]},
         "frontiers": {"type": "integer", "description": "reachable frontiers left"},
         "known_m2": {"type": "number", "description": "square metres of the map known (free or occupied)"},
         "goals": {"type": "integer", "description": "goals sent"},
@@ -239,17 +241,18 @@ def _explore():
         "elapsed": {"type": "number", "description": "seconds since it started"},
         "map": {"type": "string", "nullable": True, "description": "the map's name once saved"},
         "message": {"type": "string"}, "save_as": {"type": "string"},
-        "then": {"enum": list(explore.THEN)}, "max_minutes": {"type": "number"},
+        "then": {"enum": list(exploration.THEN)}, "max_minutes": {"type": "number"},
+        "return_home": {"type": "boolean"},
         "started": {"type": "string", "description": "when it started, the robot's local time (ISO 8601)"},
         "target": {"type": "array", "items": {"type": "number"}, "minItems": 2, "maxItems": 2, "nullable": True,
                    "description": "[x, y] in the map frame: the frontier being driven to"}},
         ["state", "frontiers", "known_m2", "goals", "unreachable", "elapsed", "map", "message"])
-    exploration["additionalProperties"] = True  # more fields may come; docs/api.md lists those promised
+    exp["additionalProperties"] = True  # more fields may come; docs/api.md lists those promised
     start = _object({"save_as": _name("the name to save the map as: " + MAP_NAME_RULE),
-                     "then": {"enum": list(explore.THEN), "description": "once saved: navigate on the map "
+                     "then": {"enum": list(exploration.THEN), "description": "once saved: navigate on the map "
                                                                          "(default) or idle"},
                      "max_minutes": {"type": "number", "exclusiveMinimum": True, "minimum": 0,
-                                     "maximum": explore.MAX_MINUTES,
+                                     "maximum": exploration.MAX_MINUTES,
                                      "description": "stop looking after this long, then come back and save "
                                                     "(default {:g})".format(explore.DEFAULT_MINUTES)},
                      "return_home": {"type": "boolean", "description": "come back to where it started before "
@@ -258,9 +261,9 @@ def _explore():
                      "valid_until": VALID_UNTIL}, ["save_as"])
     return {"/explore": {
         "get": _operation("The exploration under way, or the last one (null before the first)", None,
-                          {200: _json(_object({"exploration": dict(exploration, nullable=True)}))}),
+                          {200: _json(_object({"exploration": dict(exp, nullable=True)}))}),
         "post": _operation("Explore: map by itself (starting mapping if needed), come back, save the map, then "
-                           "navigate on it", start, {202: _ok({"exploration": exploration})},
+                           "navigate on it", start, {202: _ok({"exploration": exp})},
                            errors=(409, 503)),
     }}
 

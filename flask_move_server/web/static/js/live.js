@@ -155,13 +155,14 @@ export class Live {
   }
 }
 
-/** Every couple of seconds while polling: the mode (told when it changed) and the map's version. */
+/** Every couple of seconds while polling: the mode (told when it changed), the map's version, an exploration. */
 Live.prototype.pollSlowly = function () {
   api("GET", "/mode").then((mode) => {
     const text = JSON.stringify(mode);
     if (text !== this.lastMode) { this.lastMode = text; this.emit("mode", mode); }
   }, () => {});
   api("GET", "/map").then((map) => this.emit("map", map), () => {});
+  api("GET", "/explore").then((data) => { if (data.exploration) this.emit("explore", data.exploration); }, () => {});
 };
 
 const sleep = (ms) => new Promise((resolve) => setTimeout(resolve, ms));

@@ -15,6 +15,7 @@ import {initHome} from "./home.js";
 import {initWhereabouts, showWhereabouts, noMapInUse} from "./whereabouts.js";
 import {initRoutes, loadRoutes, showPastRuns} from "./routes.js";
 import {initRunStrip, loadRuns, tellRun} from "./runstrip.js";
+import {initExplore, loadExploration, tellExploration} from "./explore.js";
 
 const $ = (id) => document.getElementById(id);
 const map = new MapView($("map"), {overlays: [$("gesture")]});
@@ -49,12 +50,13 @@ export function sendGoal(where) {
 /** Start a run (`/runs` with `body`), resume or skip one (`path` alone): they send the robot on, so
  *  they are refused while the e-stop is latched and end STOP's retries, as a goal does. */
 function move(path, body) {
-  if (latched()) {
-    report({code: "estop_latched"});
-    return Promise.reject(new Error("e-stop latched"));
-  }
+  return setOff(path, body).then((answer) => { clearError(); return answer; }, (e) => { report(e, "run"); throw e; });
+}
+/** As `move`, its refusals left to the caller to tell (Explore asks before replacing a saved map). */
+function setOff(path, body) {
+  if (latched()) return Promise.reject(Object.assign(new Error("e-stop latched"), {code: "estop_latched"}));
   stopping.cancel();
-  return call("POST", path, body && Object.assign({}, body, within(GOAL_WINDOW_S)), "run");
+  return api("POST", path, body && Object.assign({}, body, within(GOAL_WINDOW_S)));
 }
 const quietly = (promise) => promise.catch(() => {});
 const buzz = () => { if (navigator.vibrate) navigator.vibrate(30); };  // a felt "sent" on phones that can
@@ -227,6 +229,7 @@ function resync() {
   quietly(loadMaps());
   quietly(loadRoutes());
   quietly(loadRuns());
+  quietly(loadExploration());
 }
 
 live.onState = showConnection;
@@ -241,6 +244,7 @@ live.on("run", (run) => {
   tellRun(run);
   if (run.trigger === "schedule") quietly(loadRoutes());  // its route's next run has moved on
 });
+live.on("explore", tellExploration);
 live.on("map", (m) => { if (m.version !== mapVersion) quietly(loadMap()); });
 live.on("mode", (m) => { showModes(m); quietly(loadMaps()); quietly(loadMap()); });
 
@@ -294,6 +298,7 @@ initHome({sendGoal, map, report});
 initWhereabouts({call, setGesture});
 initRunStrip({call, move, map, onRuns: showPastRuns});
 initRoutes({call, move, isLive, map, setGesture});
+initExplore({setOff, stop: () => { joystick.release(); keys.release(); stopping.send(); }, report, map, hint: flashHint});
 setGesture("go");
 showConnection("connecting");
 live.start();

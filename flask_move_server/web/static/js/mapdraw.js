@@ -1,5 +1,5 @@
-// Drawing the map view: the map image (or a metre grid without one), the plan, the goal, the
-// waypoints, a route (routedraw.js), the robot and the arrow being dragged. Pure drawing: what to draw
+// Drawing the map view: the map image (or a metre grid without one), the plan, the goal, the spot an
+// exploration heads for, the waypoints, a route (routedraw.js), the robot and the arrow being dragged. Pure drawing: what to draw
 // is the view's state.
 import {drawRoute} from "./routedraw.js";
 
@@ -14,6 +14,7 @@ export function drawMap(v) {
   drawTrail(v, ctx);
   drawPlan(v, ctx);
   drawScan(v, ctx);
+  if (v.exploreTarget) drawLookout(v, ctx, v.exploreTarget);
   if (v.goal) drawArrow(v, ctx, v.goal.x, v.goal.y, v.goal.yaw, "#c2185b", 16);
   drawWaypoints(v, ctx, drawRoute(v, ctx));
   if (v.drawn && v.robot) {
@@ -44,6 +45,19 @@ function drawGrid(v, ctx) {
     const s = v.toScreen(0, y)[1]; ctx.moveTo(0, s); ctx.lineTo(v.width, s);
   }
   ctx.stroke();
+}
+
+/** Where an exploration is heading, to look at what is not mapped yet: a dashed ring the goal's colour. */
+function drawLookout(v, ctx, [x, y]) {
+  const [sx, sy] = v.toScreen(x, y);
+  ctx.save();
+  for (const [colour, width, dash] of [["#fff", 6, []], ["#c2185b", 3, [6, 4]]]) {
+    ctx.strokeStyle = colour;
+    ctx.lineWidth = width;
+    ctx.setLineDash(dash);
+    ctx.beginPath(); ctx.arc(sx, sy, 15, 0, 2 * Math.PI); ctx.stroke();
+  }
+  ctx.restore();
 }
 
 function drawPlan(v, ctx) {

@@ -39,6 +39,7 @@ export class MapView {
     this.trail = [];             // where the robot went [[x, y] or null (a jump), ...], oldest first
     this.draft = null;           // a route being made [{name, state}] in order, shown before a run's
     this.runStops = null;        // the run under way's stops [{name, state}]: its progress
+    this.exploreTarget = null;   // [x, y]: where the exploration under way is heading
     this.mode = "go";            // what a one-finger press does: go | pose | mark | look | route (tap places, pan)
     this.pointers = new Map();
     this.gesture = null;
@@ -342,6 +343,7 @@ export class MapView {
     set(ds, "scanSeen", String(this.scanSeen));
     set(ds, "route", JSON.stringify(this.routeShown()));
     set(ds, "trailPoints", String(this.trail.filter(Boolean).length));
+    set(ds, "exploreTarget", this.exploreTarget ? this.exploreTarget.join(",") : "");
   }
 }
 

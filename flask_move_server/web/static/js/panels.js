@@ -155,18 +155,26 @@ async function deleteMap(name) {
   quietly(loadMaps());
 }
 
+/** Asks for the name to save a map as (Save as… and Explore): trimmed, in NFC; "" when dismissed. */
+export const askMapName = (question) => (window.prompt(question) || "").trim().normalize("NFC");
+
+/** The refusal `e` says a map called `name` exists and may be replaced (never the robot's own map: say why). */
+export const replaceable = (e, name) =>
+  e.code === "map_exists" && !(configuredName && name.toLowerCase() === configuredName.toLowerCase());
+
+export const confirmReplace = (name) => window.confirm("A map called " + name + " exists. Replace it (and its places)?");
+
 /** Asks for a name and saves the map being made (then navigates on it, unless `then` is false); true once saved. */
 async function saveMap(then = true) {
-  const name = (window.prompt("Save this map as:") || "").trim();
+  const name = askMapName("Save this map as:");
   if (!name) return false;
   let body = then ? {name, then: "navigation"} : {name};
   let saved = true;
   try {
     await api("POST", "/maps", body, 60000);
   } catch (e) {
-    const taken = e.code === "map_exists" && !(configuredName && name.toLowerCase() === configuredName.toLowerCase());
-    if (!taken) { ctx.report(e, "save"); return false; }  // the robot's own map's name cannot be replaced: say why
-    if (!window.confirm("A map called " + name + " exists. Replace it (and its places)?")) return false;
+    if (!replaceable(e, name)) { ctx.report(e, "save"); return false; }
+    if (!confirmReplace(name)) return false;
     body = Object.assign(body, {overwrite: true});
     saved = await ctx.call("POST", "/maps", body, "save", 60000).then(() => true, () => false);
   }

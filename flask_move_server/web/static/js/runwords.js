@@ -40,11 +40,17 @@ export function runResult(run) {
 }
 
 function stoppedBy(run) {
+  return "stopped: " + (endedBy(run.message) || sentence(run.message));
+}
+
+/** Who ended something the robot was doing (a run, an exploration), from the server's sentence: "STOP was
+ *  pressed"; null when the sentence says no one the page knows. */
+export function endedBy(message) {
   for (const [pattern, say] of ENDED_BY) {
-    const m = pattern.exec(run.message || "");
-    if (m) return "stopped: " + say(m);
+    const m = pattern.exec(message || "");
+    if (m) return say(m);
   }
-  return "stopped: " + sentence(run.message);
+  return null;
 }
 
 /** "missed office: no path" for one; "missed 2: office, sofa" for more. A skip is said as one. */
@@ -55,7 +61,7 @@ function missedText(missed) {
 }
 
 /** A server sentence as part of a line: no API asides, no closing full stop, lower-case start. */
-function sentence(text) {
+export function sentence(text) {
   const plain = withoutApi(text || "").replace(/\.$/, "");
   return plain.charAt(0).toLowerCase() + plain.slice(1);
 }

@@ -14,6 +14,7 @@ const WORDS = {
     pose: "The position can be set only when navigating on a saved map: Maps → Use a map.",
     save: "Saving needs a map being made: Maps → Start mapping first.",
     run: "Routes run only while navigating on a map: Maps → Use a map.",
+    explore: "The robot cannot explore in the mode it is in: see Maps.",
   }[what] || "The robot is not in the right mode for this: see Maps."),
   move_base_unavailable: () => "The robot's navigation is not ready yet: wait until the top bar stops saying starting.",
   ros_unavailable: () => "The robot's ROS is not running yet: wait a moment (or see Health).",
@@ -28,6 +29,8 @@ const WORDS = {
   run_conflict: (e) => /^Run \d+ \(/.test(e.message) ?  // "Run 3 (rounds) is running: cancel it first"
     "Another route is running: press Cancel on its strip at the top first, or wait until it ends." :
     "The route has moved on meanwhile (it ended, or is no longer paused): see its strip.",
+  explore_conflict: (e) => (EXPLORE_REFUSALS.find(([pattern]) => pattern.test(e.message)) || [0, withoutApi(e.message)])[1],
+  modes_off: () => "This robot's navigation is started outside its server, so the page cannot switch it to mapping.",
   unknown_run: () => "That run of a route is no longer kept on the robot.",
   unknown_route: () => "That route is gone (deleted on another phone?).",
   bad_route: (e) => withoutApi(e.message).replace(/Field '(\w+)'/g, (all, f) => ROUTE_FIELDS[f] || f)
@@ -37,6 +40,16 @@ const WORDS = {
       (all, place, routes, it) => "The place " + place + " is a stop of " + routes + ": take it out (Routes → Edit) " +
         "or delete " + (it === "it" ? "the route" : "those routes") + " first."),
 };
+
+// Why an exploration cannot start, by the server's sentence (explore/explorer.py, web/explore.py).
+const EXPLORE_REFUSALS = [
+  [/^Run \d+ /, "A route is running: press Cancel on its strip at the top first, or wait until it ends."],
+  [/already exploring/, "The robot is exploring already: its strip at the top says how far it got (Stop ends it)."],
+  [/does not run the navigation stack/, "This robot's mapping is started outside its server, so it cannot explore " +
+    "by itself: start mapping on the robot and drive it with the joystick."],
+  [/does not explore/, "This robot's server cannot explore by itself: Start mapping and drive it with the joystick."],
+  [/shutting down/, "The robot's server is stopping: try again once it is back."],
+];
 
 // A route's fields as the Routes panel labels them (the server names the JSON field).
 const ROUTE_FIELDS = {waypoints: "The stops", loops: "Loops", dwell: "Wait at each place", on_failure: "If a place " +
