@@ -313,3 +313,16 @@ def test_the_box_test_on_the_simulated_lidar_never_asks_to_change_its_mount():
     assert line.level == "fail" and "ROBOT_LASER_YAW" not in line.advice and "face a wall" in line.advice
     scan.nearest = (1.0, math.pi + 1e-9)  # straight ahead, a hair off: "+0 deg", never "-0 deg"
     assert "shows at +0 deg" in checks.box_check(obs).summary
+
+
+@pytest.mark.parametrize("mode, level", [("navigation", "fail"), ("mapping", "warn"), ("idle", "skip")])
+def test_move_base_missing_fails_in_navigation_warns_while_mapping_is_skipped_idle(mode, level):
+    """Mapping runs move_base too (exploring, goals while mapping): missing there is worth a warning."""
+    from types import SimpleNamespace
+
+    from flask_move_server.diagnostics.checks import move_base_check
+
+    check = move_base_check(SimpleNamespace(move_base=False, mode=mode))
+    assert check.level == level, check
+    if mode == "mapping":
+        assert "explore" in check.summary and "move_base:=false" in check.advice

@@ -266,3 +266,15 @@ def test_no_pose_on_the_new_map_fails_with_the_reason():
     x.start("flat")
     done = ended(x)
     assert done["state"] == "failed" and "no tf map" in done["message"]
+
+
+@pytest.mark.parametrize("outcomes, back", [([("aborted", "stuck"), ("succeeded", None)], True),
+                                            ([("aborted", "stuck"), ("aborted", "stuck")], False)])
+def test_the_way_home_is_tried_twice_then_the_map_is_saved_where_it_stands(outcomes, back):
+    robot, maps = Robot(outcomes), Maps(grid(CLOSED))
+    x = explorer(robot, maps)
+    x.start("flat")
+    done = ended(x)
+    assert done["state"] == "done" and maps.saved == [("flat", True)]
+    assert len(robot.goals) == 2
+    assert ("could not get back" in done["message"]) is not back, done["message"]

@@ -32,6 +32,7 @@ VARIANTS = [
     ("navigation.launch", ["server:=false", "map:=/tmp/some/map.yaml"]),
     ("navigation.launch", ["server:=false", "lidar:=false"]),  # the stack on flask-move-server --sim
     ("mapping.launch", ["server:=false", "lidar:=false"]),
+    ("mapping.launch", ["move_base:=false"]),  # a robot too weak to run move_base beside gmapping
     ("server.launch", []),
     ("rviz.launch", []),
     ("rviz.launch", ["view:=mapping"]),
@@ -120,11 +121,14 @@ def test_every_node_package_resolves_with_rospack():
         assert proc.returncode == 0, "rospack cannot find {}: {}".format(package, proc.stderr)
 
 
-def test_mapping_runs_gmapping_or_hector_with_the_lidar_and_the_driving_server():
+def test_mapping_runs_gmapping_or_hector_with_the_lidar_move_base_and_the_driving_server():
     assert set(node_names("mapping.launch")) == {"/rplidar", "/base_link_to_laser", "/flask_move_server",
-                                                 "/slam_gmapping"}
+                                                 "/slam_gmapping", "/move_base"}
     assert "/hector_mapping" in node_names("mapping.launch", ["slam:=hector"])
+    assert "/move_base" in node_names("mapping.launch", ["slam:=hector"])
     assert "/slam_gmapping" not in node_names("mapping.launch", ["slam:=hector"])
+    assert set(node_names("mapping.launch", ["move_base:=false"])) == {
+        "/rplidar", "/base_link_to_laser", "/flask_move_server", "/slam_gmapping"}
     params = dump_params("mapping.launch")
     assert params["/flask_move_server/drive/backend"] == "l298n"
     assert params["/rplidar/serial_port"] == "/dev/ttyUSB0" and params["/rplidar/serial_baudrate"] == 115200
@@ -143,6 +147,42 @@ def test_navigation_args_reach_the_nodes():
     assert params["/rplidar/serial_port"] == "/dev/ttyS9"
     assert params["/move_base/base_local_planner"] == "dwa_local_planner/DWAPlannerROS"
     assert params["/move_base/DWAPlannerROS/max_vel_y"] == 0.0  # skid-steer: no lateral motion
+
+
+# What mapping's move_base has that navigation's has not: config/move_base_mapping.yaml, for a growing map.
+GROWING_MAP = {
+    "/move_base/NavfnROS/allow_unknown": (False, True),
+    "/move_base/global_costmap/static_layer/subscribe_to_updates": (False, True),
+    "/move_base/global_costmap/static_layer/first_map_only": (None, False),  # navigation: the default, false
+}
+
+
+def node_params(params, node):
+    return {k: v for k, v in params.items() if k.startswith(node + "/")}
+
+
+@pytest.mark.parametrize("args", [[], ["server:=false", "lidar:=false"], ["slam:=hector"]],
+                         ids=lambda a: " ".join(a) or "-")
+def test_mapping_s_move_base_is_navigation_s_with_the_growing_map_overrides(args):
+    """Both include launch/include/move_base.launch: they differ by move_base_mapping.yaml's keys only."""
+    navigation = node_params(dump_params("navigation.launch"), "/move_base")
+    mapping = node_params(dump_params("mapping.launch", args), "/move_base")
+    differ = {k: (navigation.get(k), mapping.get(k)) for k in set(navigation) | set(mapping)
+              if navigation.get(k) != mapping.get(k)}
+    assert differ == GROWING_MAP
+    assert len(navigation) > 50  # the whole move_base: costmaps, DWA, navfn, recoveries
+
+
+def test_mapping_without_move_base_sets_none_of_its_params():
+    assert node_params(dump_params("mapping.launch", ["move_base:=false"]), "/move_base") == {}
+
+
+def test_frame_args_reach_mapping_s_move_base():
+    params = dump_params("mapping.launch", ["map_frame:=world", "odom_frame:=wheels", "base_frame:=body"])
+    assert params["/move_base/global_costmap/global_frame"] == "world"
+    assert params["/move_base/local_costmap/global_frame"] == "wheels"
+    assert params["/move_base/global_costmap/robot_base_frame"] == "body"
+    assert params["/move_base/local_costmap/robot_base_frame"] == "body"
 
 
 def launch_config(name, args=(), monkeypatch=None):

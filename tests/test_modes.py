@@ -329,7 +329,7 @@ def test_running_waits_until_goals_reach_the_new_move_base(cfg):
 
 def test_a_mode_whose_stack_has_no_move_base_runs_without_waiting_for_it(cfg):
     stack = StandInStack()
-    stack.serves_goals = lambda mode: mode == "navigation"  # as LaunchedStack: mapping.launch has no move_base
+    stack.serves_goals = lambda mode: mode == "navigation"  # as LaunchedStack on a mapping launch without move_base
     asked = []
     modes = ModeManager(cfg, stack, goals_ready=lambda: asked.append(1))
     try:

@@ -19,7 +19,7 @@ from tests.test_launch import ros_env
 from tests.test_stack_launched import stack_processes
 
 LIDAR = {"roslaunch", "rplidar", "base_link_to_laser"}  # launch/include/lidar.launch, in every mode
-MAPPING = LIDAR | {"slam_gmapping"}
+MAPPING = LIDAR | {"slam_gmapping", "move_base"}  # move_base on the growing map (launch/include/move_base.launch)
 NAVIGATION = LIDAR | {"map_server", "amcl", "move_base"}
 GMAPPING_SIZE = (20, 10)  # the stub gmapping's map (tests/stub_packages/gmapping/slam_gmapping)
 SWITCH_WAIT = 45
@@ -113,8 +113,9 @@ def test_map_the_flat_save_it_navigate_on_it_switch_maps_and_stop(robot):
     assert robot.stack() == {}
 
     mapping = switch(server, {"mode": "mapping"})
-    assert "move_base" not in mapping["message"], mapping  # mapping.launch has none; nothing to wait for
+    assert "move_base" not in mapping["message"], mapping  # running once goals reach mapping's move_base
     assert set(robot.stack()) == MAPPING
+    assert server.get("/health").json()["move_base"] == "ready"  # /goto while mapping, and exploring
     wait_for(lambda: server.get("/map").status_code == 200, timeout=10, message="GET /map to serve the map")
     assert map_size(server) == GMAPPING_SIZE
     mapped = server.get("/map").json()["version"]

@@ -4,9 +4,13 @@ move_base, dwa_local_planner, clear_costmap_recovery, rotate_recovery, AMCL and 
 cannot run here (Debian does not package them). Each test below recomputes what one of them
 does with our files, from its Noetic source (file named in each test), so a configuration the
 real robot cannot drive with fails ``make test``. Every rule also runs against the files as
-shipped before issue 19 (tests/data/unfit_nav_config/), which it must reject.
+shipped before issue 19 (tests/data/unfit_nav_config/), which it must reject; the rules for
+move_base on a growing map (issue 24) run against what roslaunch gives move_base in each mode,
+and against that with the one value each rule guards changed, which they must reject.
 """
 
+import copy
+import functools
 import math
 import os
 import re
@@ -18,7 +22,7 @@ import yaml
 from flask_move_server import config as config_mod
 from flask_move_server.sim import dwa
 from tests.conftest import ROOT
-from tests.test_launch import launch_path, ros_env
+from tests.test_launch import dump_params, launch_path, ros_env
 
 SHIPPED = os.path.join(ROOT, "config")
 UNFIT = os.path.join(ROOT, "tests", "data", "unfit_nav_config")
@@ -226,3 +230,222 @@ def test_the_costmap_takes_the_scan_s_own_frame():
     """A fixed sensor_frame must be the lidar's frame; none at all follows the scan's frame_id."""
     scan = read(SHIPPED, "costmap_common")["obstacle_layer"]["scan"]
     assert "sensor_frame" not in scan
+
+
+# --- move_base on a growing map (mapping) and on a saved one (navigation) ----------------------
+# Sources: ros-planning/navigation noetic-devel (costmap_2d, navfn, move_base, base_local_planner),
+# ros-perception/slam_gmapping melodic-devel (Noetic's release), cost values from
+# costmap_2d/include/costmap_2d/cost_values.h.
+
+NO_INFORMATION, LETHAL_OBSTACLE, INSCRIBED, FREE_SPACE = 255, 254, 253, 0
+GMAPPING_UNKNOWN = -1  # slam_gmapping.cpp updateMap: a cell never seen is -1 (0 free, 100 occupied)
+MODES = {"mapping": ("mapping.launch", ["server:=false", "lidar:=false"]),
+         "navigation": ("navigation.launch", ["server:=false", "lidar:=false"])}
+
+
+@functools.lru_cache(maxsize=None)
+def _move_base_params(mode):
+    launch, args = MODES[mode]
+    tree = {}
+    for key, value in dump_params(launch, args).items():
+        if key.startswith("/move_base/"):
+            *parents, leaf = key[len("/move_base/"):].split("/")
+            branch = tree
+            for part in parents:
+                branch = branch.setdefault(part, {})
+            branch[leaf] = value
+    return tree
+
+
+def move_base_params(mode, **changes):
+    """move_base's private params as roslaunch sets them in ``mode``; ``changes``: "a/b/c" (as a__b__c) = value."""
+    tree = copy.deepcopy(_move_base_params(mode))
+    for path, value in changes.items():
+        *parents, leaf = path.split("__")
+        branch = tree
+        for part in parents:
+            branch = branch.setdefault(part, {})
+        branch[leaf] = value
+    return tree
+
+
+def layer(costmap, kind):
+    """The params of the first layer of type ``kind`` in ``costmap``'s plugins (None: no such layer)."""
+    for plugin in costmap.get("plugins", []):
+        if plugin["type"] == kind:
+            return costmap.get(plugin["name"], {})
+    return None
+
+
+def static_layer_cost(static, value):
+    """StaticLayer::interpretValue (static_layer.cpp 150-164): an OccupancyGrid value as a cost.
+
+    The message's int8 and the int param are both kept as unsigned char (static_layer.h 94), so
+    unknown_cost_value -1 matches gmapping's -1 (255 == 255); defaults from onInitialize (74-83).
+    """
+    value &= 0xFF
+    unknown = static.get("unknown_cost_value", -1) & 0xFF
+    lethal = max(min(static.get("lethal_cost_threshold", 100), 100), 0)
+    if static.get("track_unknown_space", True) and value == unknown:
+        return NO_INFORMATION
+    if not static.get("track_unknown_space", True) and value == unknown:
+        return FREE_SPACE
+    if value >= lethal:
+        return LETHAL_OBSTACLE
+    if static.get("trinary_costmap", True):
+        return FREE_SPACE
+    return int(value / lethal * LETHAL_OBSTACLE)
+
+
+def unseen_cell_cost(mb):
+    """The global costmap's cost, as navfn reads it, of a cell gmapping has not seen, in the laser's reach.
+
+    Static layer first (updateWithTrueOverwrite copies every cell, costmap_layer.cpp 89-106), then
+    the obstacle layer, whose cells no scan marked or cleared hold its default: NO_INFORMATION with
+    track_unknown_space, else FREE_SPACE (obstacle_layer.cpp 62-67; the default follows the
+    costmap's own track_unknown_space, false by default: costmap_2d_ros.cpp 109). It writes its
+    cells over the master within the scans' bounds by combination_method (default 1,
+    ObstaclePlugin.cfg; obstacle_layer.cpp 436-446): max and overwrite skip NO_INFORMATION and
+    otherwise replace an unknown master cell (costmap_layer.cpp 63-87, 108-125). The inflation
+    layer leaves a cell far from obstacles as it is (inflation_layer.cpp 261-265).
+    """
+    costmap = mb["global_costmap"]
+    static = layer(costmap, "costmap_2d::StaticLayer")
+    cost = static_layer_cost(static, GMAPPING_UNKNOWN) if static is not None else (
+        NO_INFORMATION if costmap.get("track_unknown_space", False) else FREE_SPACE)
+    obstacles = layer(costmap, "costmap_2d::ObstacleLayer")
+    if obstacles is not None:
+        default = NO_INFORMATION if obstacles.get("track_unknown_space", costmap.get("track_unknown_space", False)) \
+            else FREE_SPACE
+        method = obstacles.get("combination_method", 1)
+        if default != NO_INFORMATION and (method == 0 or (method == 1 and (cost == NO_INFORMATION or cost < default))):
+            cost = default
+    return cost
+
+
+def navfn_cell(mb, cost):
+    """NavFn::setCostmap (navfn.cpp 228-256): a ROS cost as navfn's, or None where it never plans.
+
+    Below INSCRIBED (253): COST_NEUTRAL 50 + 0.8 x cost, at most 253. NO_INFORMATION (255): 253,
+    the dearest cell it still passes, with ~NavfnROS/allow_unknown (navfn_ros.cpp 79, default
+    true; passed at 149 and 238); else, like 253 and 254, an obstacle (COST_OBS).
+    """
+    if cost < INSCRIBED:
+        return min(50 + int(0.8 * cost), 253)
+    if cost == NO_INFORMATION and mb.get("NavfnROS", {}).get("allow_unknown", True):
+        return 253
+    return None
+
+
+def change_id(value):
+    """A test id for a parameter: ``changes`` shown as the keys they set."""
+    if isinstance(value, dict):
+        return ",".join("{}={}".format(k.replace("__", "/"), v) for k, v in value.items())
+    return str(value)
+
+
+def plans_through_unseen_space(mb):
+    """How navfn treats space gmapping has not seen: "never", "dearest" (passed when it must), or "as free"."""
+    planned = navfn_cell(mb, unseen_cell_cost(mb))
+    if planned is None:
+        return "never"
+    return "dearest" if planned > navfn_cell(mb, FREE_SPACE) else "as free"
+
+
+def test_mapping_s_global_planner_plans_through_space_the_map_has_not_seen_yet():
+    """A goal at the edge of the growing map, or past it, gets a path through unknown cells, at navfn's
+    dearest passable cost, so known free space is still preferred: NavfnROS/allow_unknown AND the
+    static layer's track_unknown_space (without it the unknown cell is FREE_SPACE and navfn crosses
+    unseen space as gladly as seen free space) AND the obstacle layer's (else its FREE_SPACE default
+    overwrites the unknown cells around the robot)."""
+    assert plans_through_unseen_space(move_base_params("mapping")) == "dearest"
+
+
+def test_navigation_never_plans_through_space_the_saved_map_has_not_seen():
+    assert plans_through_unseen_space(move_base_params("navigation")) == "never"
+
+
+@pytest.mark.parametrize("mode,change,planned", [
+    ("mapping", {"NavfnROS__allow_unknown": False}, "never"),
+    ("mapping", {"global_costmap__static_layer__track_unknown_space": False}, "as free"),
+    ("mapping", {"global_costmap__obstacle_layer__track_unknown_space": False}, "as free"),
+    ("mapping", {"global_costmap__static_layer__unknown_cost_value": 0}, "never"),  # -1 is then lethal
+    ("navigation", {"NavfnROS__allow_unknown": True}, "dearest"),
+    # allow_unknown false does not keep navfn out of unseen space the costmap turned into free space:
+    ("navigation", {"global_costmap__static_layer__track_unknown_space": False}, "as free"),
+    ("navigation", {"global_costmap__obstacle_layer__track_unknown_space": False}, "as free"),
+], ids=lambda v: change_id(v))
+def test_each_key_the_unseen_space_rules_rest_on_decides_them(mode, change, planned):
+    assert plans_through_unseen_space(move_base_params(mode, **change)) == planned
+
+
+def follows_a_growing_map(mb):
+    """What keeps the global costmap on gmapping's latest /map, or None.
+
+    slam_gmapping publishes the whole map, latched, on ``map`` (and ``map_metadata``) after each
+    update, its size and origin changed when it grew (slam_gmapping.cpp 272-273, 733-750, 780-781);
+    it publishes no ``map_updates`` (nor does hector_mapping: HectorMappingRos.cpp 152-153), so
+    subscribe_to_updates is not what follows it. The static layer stays subscribed to ``map_topic``
+    unless first_map_only (static_layer.cpp 71, 219-224), and on a map of another size or origin
+    resizes the whole costmap, every layer with it, unless the costmap is a rolling window
+    (static_layer.cpp 172-186; layered_costmap.cpp 82-93).
+    """
+    costmap = mb["global_costmap"]
+    static = layer(costmap, "costmap_2d::StaticLayer")
+    if static is None or not static.get("enabled", True):
+        return "the global costmap has no static layer (or it is disabled): the map never reaches it"
+    if static.get("map_topic", "map") != "map":
+        return "the static layer listens on {}, gmapping publishes map".format(static["map_topic"])
+    if static.get("first_map_only", False):
+        return "first_map_only: the static layer keeps gmapping's first map, a few metres around the start"
+    if costmap.get("rolling_window", False):
+        return "rolling_window: the costmap keeps its own size and never takes the map's"
+    return None
+
+
+def test_mapping_s_global_costmap_follows_the_map_as_it_grows():
+    assert follows_a_growing_map(move_base_params("mapping")) is None
+
+
+@pytest.mark.parametrize("change,why", [
+    ({"global_costmap__static_layer__first_map_only": True}, "first_map_only"),
+    ({"global_costmap__rolling_window": True}, "rolling_window"),
+    ({"global_costmap__static_layer__map_topic": "map_server_map"}, "listens on map_server_map"),
+    ({"global_costmap__static_layer__enabled": False}, "no static layer"),
+], ids=lambda v: change_id(v))
+def test_a_costmap_that_keeps_the_first_map_is_caught(change, why):
+    assert why in (follows_a_growing_map(move_base_params("mapping", **change)) or "")
+
+
+def replans_as_the_map_grows(mb):
+    """move_base.cpp planThread (575-648): with planner_frequency <= 0 (its default, 74) the first plan
+    found ends planning for the goal (611-612), and a wall gmapping adds across that plan is met only
+    when the local planner fails; above 0 it replans every 1/planner_frequency s."""
+    return mb.get("planner_frequency", 0.0) > 0
+
+
+def test_mapping_replans_as_the_map_grows():
+    assert replans_as_the_map_grows(move_base_params("mapping"))
+    assert not replans_as_the_map_grows(move_base_params("mapping", planner_frequency=0.0))
+
+
+def local_costmap_unseen_cost(mb):
+    """The local costmap's cost for a cell no layer has information about.
+
+    The costmap's own track_unknown_space (default false, costmap_2d_ros.cpp 109) sets the master's
+    default, NO_INFORMATION or FREE_SPACE (layered_costmap.cpp 68-71); the obstacle layer's unknown
+    cells are skipped (costmap_layer.cpp 76-79) and a static layer would write them (89-106).
+    """
+    costmap = mb["local_costmap"]
+    static = layer(costmap, "costmap_2d::StaticLayer")
+    if static is not None:
+        return static_layer_cost(static, GMAPPING_UNKNOWN)
+    return NO_INFORMATION if costmap.get("track_unknown_space", False) else FREE_SPACE
+
+
+@pytest.mark.parametrize("mode", sorted(MODES))
+def test_dwa_drives_into_space_the_map_has_not_seen(mode):
+    """base_local_planner's CostmapModel refuses a footprint on a NO_INFORMATION cell (costmap_model.cpp
+    134-143, -2): a local costmap that kept unknown space would stop the robot at every frontier."""
+    assert local_costmap_unseen_cost(move_base_params(mode)) == FREE_SPACE
+    assert local_costmap_unseen_cost(move_base_params(mode, local_costmap__track_unknown_space=True)) == NO_INFORMATION

@@ -74,10 +74,13 @@ def test_idle_is_the_world_alone(sim):
     assert sim.get("/health").json()["move_base"] == "unavailable"  # no move_base stand-in
 
 
-def test_gmapping_gets_what_it_needs_from_the_world(sim):
+def test_gmapping_and_move_base_get_what_they_need_from_the_world(sim):
     sim.switch({"mode": "mapping"})
     assert_fed(wait_inputs(sim, "slam_gmapping"))
+    assert_fed(wait_inputs(sim, "move_base"), odom=True)  # mapping runs move_base on the growing map
     assert sim.publishers("/scan") == ["/flask_move_server"]  # the world's lidar, not rplidar (lidar:=false)
+    assert sim.get("/health").json()["move_base"] == "ready"  # the stack's move_base, not a stand-in
+    xmlrpc.client.ServerProxy(sim.master_uri).deleteParam("/test", "/move_base/inputs")  # navigation's own next
 
 
 def test_amcl_and_move_base_get_what_they_need_on_the_sim_s_own_map(sim):

@@ -15,6 +15,7 @@ import subprocess
 import sys
 import threading
 import time
+import xmlrpc.client
 
 import pytest
 
@@ -109,6 +110,49 @@ def test_switching_modes_leaves_nothing_of_the_previous_stack(stack_env, ros_nod
     finally:
         stack.close()
     assert nothing_left(master_uri), stack_processes(master_uri)
+
+
+def test_mapping_waits_for_move_base_on_the_map_gmapping_grows(stack_env):
+    """mapping.launch runs move_base (launch/include/move_base.launch): ready once its action answers,
+    which the real move_base does only after its global costmap got the first /map."""
+    master = xmlrpc.client.ServerProxy(stack_env["ROS_MASTER_URI"])
+    with make_stack(stack_env) as stack:
+        stack.start("mapping", None, on_exit=pytest.fail)
+        assert stack.serves_goals("mapping")
+        assert any("__name:=move_base" in cmd for cmd in stack_processes(stack_env["ROS_MASTER_URI"]).values())
+        assert master.getParam("/test", "/move_base/map_size")[2] == [20, 10]  # the stub gmapping's map
+        assert master.getParam("/test", "/move_base/NavfnROS/allow_unknown")[2] is True
+    assert nothing_left(stack_env["ROS_MASTER_URI"])
+
+
+OWN_MAPPING = """<launch>
+  <arg name="server" default="true"/>
+  <arg name="lidar" default="true"/>
+  <include file="$(find flask_move_server)/launch/mapping.launch">
+    <arg name="server" value="$(arg server)"/>
+    <arg name="lidar" value="$(arg lidar)"/>
+    <arg name="move_base" value="false"/>
+  </include>
+</launch>
+"""
+
+
+def test_a_mapping_launch_file_without_move_base_is_ready_without_it(stack_env, tmp_path, monkeypatch):
+    """A robot too weak for move_base beside gmapping: the owner's launch file includes mapping.launch
+    with move_base:=false. The stack is ready on /map alone and says it takes no goals."""
+    package = tmp_path / "weak_robot"
+    (package / "launch").mkdir(parents=True)
+    (package / "package.xml").write_text('<package format="2"><name>weak_robot</name><version>0.0.0</version>'
+                                         '<description>d</description><maintainer email="a@b.c">a</maintainer>'
+                                         '<license>BSD</license></package>')
+    (package / "launch" / "mapping.launch").write_text(OWN_MAPPING)
+    monkeypatch.setenv("ROS_PACKAGE_PATH", os.pathsep.join([os.environ["ROS_PACKAGE_PATH"], str(tmp_path)]))
+    with make_stack(stack_env, mapping_launch="weak_robot mapping.launch") as stack:
+        stack.start("mapping", None, on_exit=pytest.fail)
+        assert not stack.serves_goals("mapping") and stack.serves_goals("navigation")
+        names = " ".join(stack_processes(stack_env["ROS_MASTER_URI"]).values())
+        assert "__name:=slam_gmapping" in names and "__name:=move_base" not in names
+    assert nothing_left(stack_env["ROS_MASTER_URI"])
 
 
 def test_the_stack_outlives_the_thread_that_started_it(stack_env):

@@ -163,8 +163,12 @@ def odom_check(odom):
 def move_base_check(obs):
     if obs.move_base:
         return Check("move_base", PASS, "move_base answers goals")
-    if obs.mode in ("idle", "mapping"):
-        return Check("move_base", SKIP, "move_base is not expected in {} mode".format(obs.mode))
+    if obs.mode == "idle":
+        return Check("move_base", SKIP, "move_base is not expected in idle mode")
+    if obs.mode == "mapping":  # mapping.launch runs it (exploring, /goto while mapping) unless move_base:=false
+        return Check("move_base", WARN, "move_base does not answer while mapping: the robot can be driven by "
+                     "joystick, but it cannot explore or take goals", "mapping.launch starts move_base unless "
+                     "it was given move_base:=false; journalctl -u flask-move-server shows why it stopped.")
     return Check("move_base", FAIL, "move_base does not answer", "Is navigation running (robotctl status, "
                  "GET /mode)? journalctl -u flask-move-server shows why the stack stopped.")
 

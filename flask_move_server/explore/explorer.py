@@ -51,6 +51,7 @@ PROGRESS_EVENTS = 1.0  # s between progress events
 NEARER = 0.1  # m the robot must come nearer its target within progress_timeout
 KEEP = 0.75  # m: a goal is kept while a frontier's target lies this near it
 DOCK = "dock"
+HOME_TRIES = 2  # goals home before the map is saved where the robot stands
 
 
 class Explorer:
@@ -315,24 +316,43 @@ class Explorer:
             note = exp.message
             exp.message = "Coming back to {}.".format(name)
             self._changed(exp)
-        with self._sending:
-            if not self._still(exp):
+        state, why = "aborted", None
+        for _ in range(HOME_TRIES):  # move_base may give up once (a corner, a person); a second try often does
+            seq = self._send_home(exp, home, name)
+            if seq is None:
                 return False
-            try:
-                seq = self._robot.run_goto(Goal(home, name if name == DOCK else None))
-            except MoveServerError as exc:
-                return self._fail(exp, "The way back was refused: {}".format(exc))
-            self._seq = seq
-        deadline = time.monotonic() + self.return_timeout
-        state, why = "active", None
-        while self._still(exp) and state in ("active", "canceling") and time.monotonic() < deadline:
-            state, why = self._robot.goal_end(seq, POLL)
+            state, why = self._home_goal_end(exp, seq)
+            if state != "aborted":
+                break
         if not self._still(exp):
             return False
         with self._lock:
             exp.message = note if state == "succeeded" else "{} It could not get back to {} ({}); the map is " \
                 "saved where it stands.".format(note, name, why or state)
         return True
+
+    def _send_home(self, exp, home, name):
+        """The goal home's seq; None when the exploration ended (or the goal was refused: failed)."""
+        with self._sending:
+            if not self._still(exp):
+                return None
+            try:
+                seq = self._robot.run_goto(Goal(home, name if name == DOCK else None))
+            except MoveServerError as exc:
+                self._fail(exp, "The way back was refused: {}".format(exc))
+                return None
+            self._seq = seq
+            if not self._still(exp):  # a stop came as it was sent: this goal is ours to cancel
+                self._robot.cancel_goal(seq)
+                return None
+        return seq
+
+    def _home_goal_end(self, exp, seq):
+        deadline = time.monotonic() + self.return_timeout
+        state, why = "active", None
+        while self._still(exp) and state in ("active", "canceling") and time.monotonic() < deadline:
+            state, why = self._robot.goal_end(seq, POLL)
+        return state, why
 
     def _home_pose(self):
         """(Pose2D, words): the ``dock`` place marked while mapping, else where exploring began."""

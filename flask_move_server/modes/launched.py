@@ -7,9 +7,10 @@ roslaunch runs in the server's environment (ROS_PACKAGE_PATH, ROS_HOME, ``$(opte
 
 Before roslaunch starts, its launch file is parsed in this process: a node whose package or
 executable is missing fails at once with the apt command that installs it, and the nodes that
-respawn are known (roslaunch restarts them; their death is not the stack's). A mode is ready
-when its parts answer, asked of the ROS master (no rospy node needed): mapping when a process
-of ours publishes the map topic; navigation when one also publishes ``<navigation.action>/status``.
+respawn are known (roslaunch restarts them; their death is not the stack's), and so is whether
+it runs move_base. A mode is ready when its parts answer, asked of the ROS master (no rospy node
+needed): when a process of ours publishes the map topic and, if the stack runs move_base (always
+in navigation; in mapping unless its launch file leaves move_base out), ``<navigation.action>/status``.
 A registration left by a killed node never counts: its pid must be one of our stack's.
 """
 
@@ -45,6 +46,9 @@ class LaunchedStack:
         self.master_uri = master_uri
         self._lock = threading.Lock()
         self._proc = None
+        # Does mapping's launch file run move_base? The shipped one does (move_base:=false leaves it
+        # out); each start reads it from the launch file. Navigation always runs move_base.
+        self._mapping_goals = True
         self._stopping = False
         self._closed = False
         # roslaunch is started from this one thread, alive until close(): the parent-death signal
@@ -77,7 +81,11 @@ class LaunchedStack:
             self._stopping = False
         readiness.check_master(self.master_uri)
         command = self.command(mode, map_yaml)
-        respawning = readiness.check_launch(command[1:])
+        launch = readiness.check_launch(command[1:])
+        respawning = launch.respawning
+        if mode == "mapping":
+            with self._lock:
+                self._mapping_goals = launch.runs_move_base
         proc = child.StackProcess(command)
         try:
             self._spawner.submit(proc.start).result()
@@ -94,10 +102,13 @@ class LaunchedStack:
         threading.Thread(target=self._watch, args=(proc, respawning, on_exit), name="stack-watch",
                          daemon=True).start()
 
-    @staticmethod
-    def serves_goals(mode):
-        """Whether ``mode``'s stack runs move_base: navigation only (mapping.launch is steered by hand),
-        so the mode manager does not wait for goals to reach a move_base that mapping never starts."""
+    def serves_goals(self, mode):
+        """Whether ``mode``'s stack runs move_base: navigation always; mapping when its launch file does
+        (the shipped mapping.launch, unless a launch file of yours includes it with move_base:=false).
+        The mode manager waits for goals to reach it before "running", and admits goals by it."""
+        if mode == "mapping":
+            with self._lock:
+                return self._mapping_goals
         return mode == "navigation"
 
     def command(self, mode, map_yaml=None):
@@ -114,7 +125,7 @@ class LaunchedStack:
         return argv
 
     def _wait_ready(self, proc, mode, respawning):
-        wanted = [self.map_topic] + ([self.status_topic] if mode == "navigation" else [])
+        wanted = [self.map_topic] + ([self.status_topic] if self.serves_goals(mode) else [])
         deadline = time.monotonic() + self.modes.start_timeout
         missing = wanted
         while True:

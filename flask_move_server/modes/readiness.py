@@ -6,6 +6,7 @@ are found through the ROS master's XML-RPC API with timeouts (rosgraph's has non
 counts as published when one of its publishers is a live process of our stack.
 """
 
+import collections
 import logging
 import os
 import xmlrpc.client
@@ -14,6 +15,10 @@ from flask_move_server.errors import StackFailed
 from flask_move_server.ros import master
 
 CALLER = "/flask_move_server_stack"
+
+# What the pre-check learnt of a launch file: the process names of the nodes that respawn, and
+# whether it runs move_base (its stack then takes goals, and is ready once the action answers).
+Launch = collections.namedtuple("Launch", "respawning runs_move_base")
 
 
 def global_name(name):
@@ -47,7 +52,8 @@ def check_master(uri=None):
 def check_launch(roslaunch_args):
     """Parse the launch file roslaunch will run; StackFailed for a missing package or node.
 
-    Returns the process names (``ns/name``, as roslaunch prints them) of the nodes that respawn.
+    Returns a :class:`Launch`: the process names (``ns/name``, as roslaunch prints them) of the
+    nodes that respawn, and whether a node of it is move_base.
     """
     try:
         import roslaunch.config
@@ -69,7 +75,8 @@ def check_launch(roslaunch_args):
         problem = _missing_node(node.package, node.type)
         if problem:
             raise StackFailed(problem)
-    return {process_name(node) for node in config.nodes if node.respawn}
+    return Launch({process_name(node) for node in config.nodes if node.respawn},
+                  any((node.package, node.type) == ("move_base", "move_base") for node in config.nodes))
 
 
 def process_name(node):

@@ -4,6 +4,7 @@ The stand-ins run under Debian's python3 as roslaunch starts them (not in the ve
 the checkout on sys.path themselves to reuse the project's map reader and the scripted move_base.
 """
 
+import array
 import os
 import signal
 import sys
@@ -37,7 +38,9 @@ def publish_map(grid, frame="map"):
     meta = MapMetaData(resolution=grid.resolution, width=grid.width, height=grid.height)
     meta.origin.position.x, meta.origin.position.y = grid.origin_x, grid.origin_y
     meta.origin.orientation.w = 1.0
-    msg = OccupancyGrid(info=meta, data=grid.cells)
+    # int8[] takes signed numbers: as bytes, an unknown cell (-1, byte 255) fails to serialize, and
+    # a subscriber (move_base's static layer) gets no map at all
+    msg = OccupancyGrid(info=meta, data=array.array("b", bytes(grid.cells)))
     msg.header.frame_id = frame
     msg.header.stamp = meta.map_load_time = rospy.Time.now()
     publishers = [rospy.Publisher("map", OccupancyGrid, queue_size=1, latch=True),
