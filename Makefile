@@ -7,10 +7,6 @@ VENV ?= .venv
 DEBIAN_VENV ?= .venv-debian
 PY := $(VENV)/bin/python
 PYTEST_ARGS ?=
-# Two workers (pytest-xdist): the real-time modules on one, one after the other (tests/conftest.py
-# REALTIME), the rest on the other; about half the wall time of one worker on 2 cores.
-# `make test XDIST=` runs in one process.
-XDIST ?= -n 2 --dist loadgroup
 
 # ROS 1 from Debian (on Ubuntu 20.04 + Noetic these come from /opt/ros/noetic instead), and numpy
 # (the explorer's frontier search: Debian's and Raspberry Pi OS's python3-numpy).
@@ -25,8 +21,7 @@ DEPLOY_TEST_DEBS := systemd rospack-tools python3-wheel
 BROWSER_TEST_DEBS := chromium
 # Debian's own builds of our Python dependencies: what a Pi gets from apt (make test-debian).
 DEBIAN_PY_DEBS := python3-flask python3-waitress python3-yaml python3-requests python3-zeroconf \
-	python3-serial python3-pytest python3-pytest-timeout python3-pytest-xdist python3-hypothesis \
-	python3-setuptools
+	python3-serial python3-pytest python3-pytest-timeout python3-hypothesis python3-setuptools
 
 .PHONY: setup test lint pytest test-debian run demo bench clean
 
@@ -56,7 +51,7 @@ lint: setup
 		flask_move_server tests bench setup.py
 
 pytest: setup
-	$(PY) -m pytest $(XDIST) $(PYTEST_ARGS)
+	$(PY) -m pytest $(PYTEST_ARGS)
 
 test: lint pytest
 
@@ -75,7 +70,7 @@ DEBIAN_SKIPS := --ignore=tests/test_stack_launched.py --ignore=tests/test_modes_
 	--ignore=tests/test_sim_modes.py --ignore=tests/test_runs_sim.py --ignore=tests/test_explore_sim.py
 
 test-debian: $(DEBIAN_VENV)/.installed
-	$(DEBIAN_VENV)/bin/python -m pytest -p no:cacheprovider $(XDIST) $(DEBIAN_SKIPS) $(PYTEST_ARGS)
+	$(DEBIAN_VENV)/bin/python -m pytest -p no:cacheprovider $(DEBIAN_SKIPS) $(PYTEST_ARGS)
 
 # The waypoints are copied once to build/run/, where the server also keeps mode.json and maps/.
 RUN_WAYPOINTS ?= build/run/waypoints.yaml

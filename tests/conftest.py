@@ -19,21 +19,6 @@ pytest_plugins = ["tests.robot_fixtures"]
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
 
-# Modules that drive a simulated robot, a browser or a roslaunch stack in real time: under
-# `make test`'s two pytest-xdist workers they all run on one worker, one after the other, so no two of
-# them share the 2 cores (a simulation at speed 4 beside another one missed its replans); the other
-# worker takes everything else meanwhile.
-REALTIME = ("sim", "page", "modes_robot", "stack_launched", "launch", "motion_stop", "stop_path",
-            "phantom_goals", "mdns_lan", "server_process", "estop")
-
-
-def pytest_collection_modifyitems(config, items):
-    for item in items:
-        module = os.path.basename(str(item.fspath))[len("test_"):-len(".py")]
-        if any(part in module for part in REALTIME):
-            item.add_marker(pytest.mark.xdist_group("realtime"))
-
-
 def pytest_report_header(config):
     import flask
     import waitress
