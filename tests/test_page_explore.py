@@ -185,6 +185,7 @@ def test_explore_is_greyed_while_the_e_stop_is_latched(server, page):
 
 def test_a_page_opened_later_shows_the_one_under_way_but_not_an_old_ending(server, page, browser):
     explore(page, "attic")
+    strip_says(page, "Exploring: starting to map")  # the page's POST reached the explorer: now it may go on
     server.explorer.advance(state="exploring", frontiers=2, known_m2=30.0, goals=3, target=[1.0, 1.0])
     strip_says(page, "Exploring: 2 places left to look at")
     opened = []
@@ -230,6 +231,7 @@ def test_a_page_that_polls_follows_it_too(server, browser, tmp_path):
 def test_the_strip_fits_a_phone_on_its_side_and_a_desktop(server, page, browser, device):
     server.explorer.refusal = None
     explore(page, "attic")
+    strip_says(page, "Exploring: starting to map")  # the page's POST reached the explorer: now it may go on
     server.explorer.advance(state="exploring", frontiers=12, known_m2=142.0, goals=25, unreachable=3,
                             target=[1.0, 1.0], elapsed=3725)
     other = browser.open(server.url + "/", device=device)
