@@ -69,8 +69,11 @@ $(DEBIAN_VENV)/.installed: setup.py Makefile
 DEBIAN_SKIPS := --ignore=tests/test_stack_launched.py --ignore=tests/test_modes_robot.py \
 	--ignore=tests/test_sim_modes.py --ignore=tests/test_runs_sim.py --ignore=tests/test_explore_sim.py
 
+# The servers roslaunch starts (scripts/flask_move_server_node) run on the same Debian packages, and
+# need no .venv of make test's.
 test-debian: $(DEBIAN_VENV)/.installed
-	$(DEBIAN_VENV)/bin/python -m pytest -p no:cacheprovider $(DEBIAN_SKIPS) $(PYTEST_ARGS)
+	FLASK_MOVE_SERVER_PYTHON=$(abspath $(DEBIAN_VENV))/bin/python \
+		$(DEBIAN_VENV)/bin/python -m pytest -p no:cacheprovider $(DEBIAN_SKIPS) $(PYTEST_ARGS)
 
 # The waypoints are copied once to build/run/, where the server also keeps mode.json and maps/.
 RUN_WAYPOINTS ?= build/run/waypoints.yaml
