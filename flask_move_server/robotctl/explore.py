@@ -8,7 +8,6 @@ failed, 11 when it was canceled (``robotctl stop``, the e-stop); ``--timeout S``
 """
 
 import argparse
-import contextlib
 import re
 import sys
 import time
@@ -16,7 +15,7 @@ import time
 from flask_move_server.errors import ClientError
 from flask_move_server.explore.exploration import MAX_MINUTES
 from flask_move_server.robotctl.api import ExitStatus
-from flask_move_server.robotctl.text import LiveLine
+from flask_move_server.robotctl.text import LiveLine, in_robotctl_words, rewritten
 
 POLL_PERIOD = 0.5  # s between GET /explore while --wait follows an exploration
 ACTIVE = ("starting", "exploring", "returning", "saving")
@@ -144,24 +143,12 @@ _ADVICE = {
 
 
 def _robotctl_words(text):
-    for pattern, words in _HTTP_WORDS:
-        text = pattern.sub(words, text)
-    return text
+    return rewritten(text, _HTTP_WORDS)
 
 
-@contextlib.contextmanager
 def _in_robotctl_words(name):
     """Around ``POST /explore``: a refusal naming an HTTP call is told with robotctl's commands."""
-    try:
-        yield
-    except ClientError as exc:
-        code = (getattr(exc, "body", None) or {}).get("error")
-        if code in _ADVICE:
-            raise ClientError(_ADVICE[code].format(name=name), exc.exit_status) from None
-        said = _robotctl_words(str(exc))
-        if said == str(exc):
-            raise
-        raise ClientError(said, exc.exit_status) from None
+    return in_robotctl_words(_robotctl_words, _ADVICE, name)
 
 
 # the parser -------------------------------------------------------------------------------------

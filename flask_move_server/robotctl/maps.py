@@ -6,14 +6,12 @@ commands (``map start``, ``map use``) and ``map explore`` (robotctl/explore.py)
 join the same ``map`` parser.
 """
 
-import contextlib
 import sys
 
-from flask_move_server.errors import ClientError
 from flask_move_server.robotctl import explore as client_explore
 from flask_move_server.robotctl import modes as client_modes
 from flask_move_server.robotctl.api import ExitStatus, name_path
-from flask_move_server.robotctl.text import columns, padded
+from flask_move_server.robotctl.text import columns, in_robotctl_words, padded
 
 SAVE_TIMEOUT = 60.0  # s: the server waits up to maps.save_timeout (10 s) for a map, then writes it
 
@@ -83,19 +81,13 @@ _ADVICE = {
 }
 
 
-@contextlib.contextmanager
 def _in_robotctl_words(name):
     """Around a map request: a refusal the table above knows is told in robotctl's words."""
-    try:
-        yield
-    except ClientError as exc:
-        code = (getattr(exc, "body", None) or {}).get("error")
-        if code in _ADVICE:
-            raise ClientError(_ADVICE[code].format(name=name), exc.exit_status) from None
-        said = str(exc).replace("GET /maps lists the saved maps", "'robotctl map list' lists them")
-        if said == str(exc):
-            raise
-        raise ClientError(said, exc.exit_status) from None
+    return in_robotctl_words(_rewrite, _ADVICE, name)
+
+
+def _rewrite(text):
+    return text.replace("GET /maps lists the saved maps", "'robotctl map list' lists them")
 
 
 ACTIONS = {"save": cmd_save, "list": cmd_list, "rm": cmd_rm, "start": client_modes.cmd_map,

@@ -8,7 +8,6 @@ canceled or cut short. ``pause``, ``resume``, ``skip`` and ``cancel`` act on the
 on ``--run ID``. The words of the tables and lines are in :mod:`~flask_move_server.robotctl.run_text`.
 """
 
-import contextlib
 import re
 import sys
 import time
@@ -25,7 +24,7 @@ from flask_move_server.robotctl.run_text import (
     runs_table,
     stop_of,
 )
-from flask_move_server.robotctl.text import LiveLine
+from flask_move_server.robotctl.text import LiveLine, in_robotctl_words, rewritten
 
 POLL_PERIOD = 0.5  # s between GET /runs/<id> while `route run --wait` follows a run
 
@@ -192,21 +191,12 @@ _HTTP_WORDS = (
 
 
 def _robotctl_words(text):
-    for pattern, words in _HTTP_WORDS:
-        text = pattern.sub(words, text)
-    return text
+    return rewritten(text, _HTTP_WORDS)
 
 
-@contextlib.contextmanager
 def _in_robotctl_words():
     """Around a request: a refusal naming an HTTP call is told with robotctl's command."""
-    try:
-        yield
-    except ClientError as exc:
-        said = _robotctl_words(str(exc))
-        if said == str(exc):
-            raise
-        raise ClientError(said, exc.exit_status) from None
+    return in_robotctl_words(_robotctl_words)
 
 
 # the parser ---------------------------------------------------------------------------------

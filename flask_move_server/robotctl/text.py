@@ -5,6 +5,7 @@ Pure text from the JSON the server answered, kept apart from the commands in
 requests are made (and be tested without a robot).
 """
 
+import contextlib
 import math
 import sys
 import unicodedata
@@ -141,3 +142,29 @@ def columns(text):
 def padded(text, width):
     """``text`` and the spaces that make it ``width`` terminal columns wide (names line up in any script)."""
     return text + " " * max(0, width - columns(text))
+
+
+def rewritten(text, patterns):
+    """``text`` with each ``(compiled pattern, replacement)`` applied: HTTP calls told as robotctl commands."""
+    for pattern, words in patterns:
+        text = pattern.sub(words, text)
+    return text
+
+
+@contextlib.contextmanager
+def in_robotctl_words(rewrite, advice=None, name=None):
+    """Around a request: a refusal whose code ``advice`` knows is told in its words (``{name}`` filled);
+    any other is passed through ``rewrite`` (a text → text function), and re-raised as it was when
+    that changes nothing."""
+    from flask_move_server.errors import ClientError
+
+    try:
+        yield
+    except ClientError as exc:
+        code = (getattr(exc, "body", None) or {}).get("error")
+        if advice and code in advice:
+            raise ClientError(advice[code].format(name=name), exc.exit_status) from None
+        said = rewrite(str(exc))
+        if said == str(exc):
+            raise
+        raise ClientError(said, exc.exit_status) from None
