@@ -17,11 +17,13 @@ ROS_DEBS := python3-rospy python3-rosmaster python3-roslaunch python3-rosgraph p
 # systemd-analyze verify and rospack for the deployment tests (units, launch files).
 # python3-wheel: pip's --no-build-isolation installs (installer tests, test-debian) on Debian's setuptools.
 DEPLOY_TEST_DEBS := systemd rospack-tools python3-wheel
+# A real MQTT broker for the Home Assistant and VDA 5050 tests (started by the tests on a free port).
+MQTT_TEST_DEBS := mosquitto
 # The phone page's browser tests: Debian's chromium, driven by Playwright (no browser download).
 BROWSER_TEST_DEBS := chromium
 # Debian's own builds of our Python dependencies: what a Pi gets from apt (make test-debian).
 DEBIAN_PY_DEBS := python3-flask python3-waitress python3-yaml python3-requests python3-zeroconf \
-	python3-serial python3-pytest python3-pytest-timeout python3-hypothesis python3-setuptools
+	python3-serial python3-paho-mqtt python3-pytest python3-pytest-timeout python3-hypothesis python3-setuptools
 
 .PHONY: setup test lint pytest test-debian run demo bench clean
 
@@ -41,7 +43,7 @@ $(VENV)/.server: setup.py Makefile
 # chromium for the phone page's browser tests, and the test tools (pytest, ruff, Playwright, ...).
 $(VENV)/.installed: $(VENV)/.server
 	@echo "==> the test toolchain: systemd, rospack, chromium (apt); pytest, ruff, playwright, ... (pip)"
-	@./scripts/apt-ensure $(ROS_DEBS) $(DEPLOY_TEST_DEBS) $(BROWSER_TEST_DEBS)
+	@./scripts/apt-ensure $(ROS_DEBS) $(DEPLOY_TEST_DEBS) $(MQTT_TEST_DEBS) $(BROWSER_TEST_DEBS)
 	@$(PY) -m pip install -q --disable-pip-version-check --upgrade --upgrade-strategy eager -e '.[test]'
 	@touch $@
 
@@ -56,7 +58,7 @@ pytest: setup
 test: lint pytest
 
 $(DEBIAN_VENV)/.installed: setup.py Makefile
-	./scripts/apt-ensure $(ROS_DEBS) $(DEPLOY_TEST_DEBS) $(DEBIAN_PY_DEBS)
+	./scripts/apt-ensure $(ROS_DEBS) $(DEPLOY_TEST_DEBS) $(MQTT_TEST_DEBS) $(DEBIAN_PY_DEBS)
 	$(SYSTEM_PYTHON) -m venv --system-site-packages $(DEBIAN_VENV)
 	$(DEBIAN_VENV)/bin/python -m pip install -q --disable-pip-version-check --no-deps --no-build-isolation -e .
 	touch $@

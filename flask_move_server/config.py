@@ -252,6 +252,59 @@ class ExploreConfig:
     progress_timeout: float = checked(rules.positive, default=30.0)
 
 
+WEBHOOK_EVENTS = ("arrived", "failed", "run_done", "estop", "explore_done")
+
+
+@dataclass
+class HomeAssistantConfig:
+    """Home Assistant's MQTT discovery (docs/home-assistant.md)."""
+
+    enabled: bool = True
+    discovery_prefix: str = checked(rules.mqtt_topic_part, default="homeassistant")
+
+
+@dataclass
+class Vda5050Config:
+    """The VDA 5050 vehicle on the same MQTT connection (docs/fleet.md)."""
+
+    enabled: bool = False
+    interface_name: str = checked(rules.mqtt_topic_part, default="uagv")
+    manufacturer: str = checked(rules.mqtt_topic_part, default="flask-move-server")
+    serial_number: Optional[str] = checked(rules.mqtt_topic_part, default=None)  # None: the robot's name
+
+
+@dataclass
+class MqttConfig:
+    """One connection to the owner's MQTT broker (off by default: the server needs no broker)."""
+
+    enabled: bool = False
+    host: str = "localhost"
+    port: int = checked(rules.tcp_port, default=1883)
+    username: Optional[str] = None
+    password_file: Optional[str] = path_field(default=None)
+    tls: bool = False
+    ca_file: Optional[str] = path_field(default=None)  # None with tls: the system's certificates
+    keepalive: int = checked(rules.positive, default=30)
+    outbox: int = checked(rules.positive, default=200)
+    home_assistant: HomeAssistantConfig = field(default_factory=HomeAssistantConfig)
+    vda5050: Vda5050Config = field(default_factory=Vda5050Config)
+
+
+@dataclass
+class WebhookConfig:
+    """One webhook: a JSON POST to ``url`` on each of ``events``."""
+
+    url: str = checked(rules.web_url, default="")
+    events: List[Literal[WEBHOOK_EVENTS]] = field(default_factory=lambda: list(WEBHOOK_EVENTS))
+
+
+@dataclass
+class BatteryConfig:
+    """Where the battery's charge is heard (``sensor_msgs/BatteryState``), when something publishes it."""
+
+    topic: str = "battery_state"
+
+
 @dataclass
 class Config:
     """The whole server configuration, one section per concern."""
@@ -268,6 +321,9 @@ class Config:
     modes: ModesConfig = field(default_factory=ModesConfig)
     diagnostics: DiagnosticsConfig = field(default_factory=DiagnosticsConfig)
     explore: ExploreConfig = field(default_factory=ExploreConfig)
+    mqtt: MqttConfig = field(default_factory=MqttConfig)
+    webhooks: List[WebhookConfig] = field(default_factory=list)
+    battery: BatteryConfig = field(default_factory=BatteryConfig)
     source: str = internal_field(default="(defaults)")
 
     def resolved_token(self):

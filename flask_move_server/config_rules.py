@@ -65,3 +65,17 @@ def launch_command(value):
     if len(parts) == 2 and parts[1].endswith(".launch"):
         return None
     return "must be 'PACKAGE FILE.launch', like 'flask_move_server mapping.launch'"
+
+
+def web_url(value):
+    """An http(s) URL with a host: a webhook never goes to file://, gopher:// or a bare path."""
+    match = re.fullmatch(r"(?i)(https?)://([^/?#\s]+)[^\s]*", value)
+    if match and "@" not in match.group(2):
+        return None
+    return "must be an http:// or https:// URL with a host and no user:password@ part, like http://hub.lan:8123/api/webhook/robot"
+
+
+def mqtt_topic_part(value):
+    if value and not any(c in value for c in "/+#\0") and len(value.encode("utf-8")) <= 64:
+        return None
+    return "must be 1 to 64 bytes without '/', '+', '#'"

@@ -151,7 +151,10 @@ def test_a_stop_racing_a_goto_cancels_that_goal(client, ready_robot, move_base):
     assert stopped["canceled_goal"] is True
     wait_for(lambda: client.get("/status").get_json()["navigation"]["state"] == "canceled", timeout=5,
              message="move_base to preempt the goal the stop raced")
-    assert len(move_base.goals) == 1
+    # The cancel and the goal travel on two topics: move_base either preempts the goal or, when
+    # the cancel comes first, recalls it unexecuted. Either way nothing is left driving.
+    time.sleep(0.3)
+    assert len(move_base.goals) <= 1 and not move_base.executing
 
 
 def test_a_goal_sent_as_the_last_one_ends_is_heard_to_its_own_end(client, ready_robot, move_base):

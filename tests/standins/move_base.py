@@ -54,6 +54,11 @@ class ScriptedMoveBase:
             time.sleep(0.02)
         self._server.set_succeeded(MoveBaseResult())
 
+    @property
+    def executing(self):
+        """True while a goal is being driven (active or being preempted)."""
+        return self._server.is_active()
+
     def shutdown(self):
         """Stop serving: the action's topics are freed and the executor thread ends."""
         server = self._server
