@@ -55,7 +55,7 @@ def build(config):
         "/waypoints": {"get": _operation("List the waypoints", None, {200: _json(_object(
             {"waypoints": {"type": "array", "items": _ref("Waypoint")}}))})},
         "/waypoints/{name}": _waypoint_item(),
-        "/status": {"get": _operation("Pose, navigation, teleop, motors, e-stop, ROS, waypoints file", None,
+        "/status": {"get": _operation("Pose, navigation, teleop, motors, e-stop, ROS, waypoints file, MQTT", None,
                                       {200: _json(_object({}, ["pose", "navigation", "teleop", "motors", "estop"]))})},
         "/health": {"get": _open(_operation("Is the server up, ROS connected, move_base ready?", None, {
             200: _json(_object({"status": {"enum": ["ok"]}, "ros": {"type": "string"},
