@@ -45,6 +45,7 @@ class Server:
         self.modes = None
         self.runs = None
         self.explorer = None
+        self.happenings = None
         self._simulation = None
         self.events = None
         self._stack = contextlib.ExitStack()
@@ -65,6 +66,7 @@ class Server:
         maps = self._build_maps(stack, store)
         runs = self._build_runs(stack, robot, store)
         explorer = self.explorer = self._build_explorer(stack, robot)
+        self.happenings = self._build_happenings(stack, robot)
         app = create_app(self.config, robot, store, token=self.config.resolved_token(), events=self.events,
                          modes=self.modes, maps=maps, doctor=self._build_doctor(robot), runs=runs,
                          explorer=explorer)
@@ -127,6 +129,20 @@ class Server:
         stack.callback(explorer.close)
         robot.explorer = explorer
         return explorer
+
+    def _build_happenings(self, stack, robot):
+        """What the robot did, by name (arrived, failed, run_done, estop, explore_done), for MQTT and for
+        the webhooks ``webhooks:`` lists (POSTed from a queue of their own); both closed before the robot."""
+        from flask_move_server.happenings import Happenings
+
+        happenings = Happenings(robot, self.events)
+        stack.callback(happenings.close)
+        if self.config.webhooks:
+            from flask_move_server.mqtt.webhooks import Webhooks
+
+            webhooks = Webhooks(self.config.webhooks, self.config.mdns.hostname, happenings)
+            stack.callback(webhooks.close)
+        return happenings
 
     def _build_doctor(self, robot):
         """The first-boot doctor: ROS as the server's node sees it, and this machine."""
