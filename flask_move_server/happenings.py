@@ -69,7 +69,9 @@ class Happenings:
             events.listen("explore", self._explore_changed)
 
     def listen(self, callback):
-        """Call ``callback(name, data)`` on every happening, in the thread where it happened; keep it short."""
+        """Call ``callback(name, data)`` on every happening, in the thread where it happened (sometimes under
+        the run executor's or the explorer's lock): queue, never block nor call back into the robot. ``data``
+        is shared by every listener: read it, do not change it."""
         with self._lock:
             self._listeners.append(callback)
 
