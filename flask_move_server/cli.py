@@ -46,6 +46,7 @@ class Server:
         self.runs = None
         self.explorer = None
         self.mqtt = None
+        self.happenings = None
         self._simulation = None
         self.events = None
         self._stack = contextlib.ExitStack()
@@ -66,6 +67,7 @@ class Server:
         maps = self._build_maps(stack, store)
         runs = self._build_runs(stack, robot, store)
         explorer = self.explorer = self._build_explorer(stack, robot)
+        self.happenings = self._build_happenings(stack, robot)
         app = create_app(self.config, robot, store, token=self.config.resolved_token(), events=self.events,
                          modes=self.modes, maps=maps, doctor=self._build_doctor(robot), runs=runs,
                          explorer=explorer)
@@ -130,6 +132,20 @@ class Server:
         robot.explorer = explorer
         return explorer
 
+    def _build_happenings(self, stack, robot):
+        """What the robot did, by name (arrived, failed, run_done, estop, explore_done), for MQTT and for
+        the webhooks ``webhooks:`` lists (POSTed from a queue of their own); both closed before the robot."""
+        from flask_move_server.happenings import Happenings
+
+        happenings = Happenings(robot, self.events)
+        stack.callback(happenings.close)
+        if self.config.webhooks:
+            from flask_move_server.mqtt.webhooks import Webhooks
+
+            webhooks = Webhooks(self.config.webhooks, self.config.mdns.hostname, happenings)
+            stack.callback(webhooks.close)
+        return happenings
+
     def _build_mqtt(self, stack, app, store):
         """The robot on the owner's MQTT broker (``mqtt.enabled``): Home Assistant's discovery, its
         commands and the state topic, on one connection made in the background; None when off."""
@@ -148,8 +164,11 @@ class Server:
         home = HomeAssistant(link, cfg.mqtt.home_assistant, name, device_info(name, cfg.mdns.instance or name, url),
                              store, self.robot, self.events)
         commands = Commands(link, self.robot, store, self.runs, changed=lambda: state.changed())
+        happenings = self.happenings
         state = RobotState(link, self.robot, self.modes, self.runs, self.explorer, self.events,
-                           refused=lambda: commands.refused, battery_heard=home.battery_heard)
+                           refused=lambda: commands.refused, battery_heard=home.battery_heard,
+                           last_reached=lambda: (happenings.last_reached or {}).get("name"))
+        happenings.listen(lambda name, data: state.changed())  # a goal's end told at once, not a second later
         for part in (home, state):
             stack.callback(part.start().close)
         app.extensions["flask_move_server"]["mqtt"] = link

@@ -129,6 +129,15 @@ def test_go_to_sends_the_robot_and_stop_stops_it(sim, home):
     wait_for(lambda: sim.get("/status").json()["motors"]["left"] == 0, message="the motors at rest") or motors
 
 
+def test_dock_drives_home_and_the_house_hears_it_arrived(sim, home):
+    home.send(ROOT_TOPIC + "/dock/press", "PRESS")
+    home.wait_json(STATE, lambda s: s["target"] == "dock", message="on its way to the dock")
+    state = home.wait_json(STATE, lambda s: s["status"] == "arrived", timeout=60, message="arrived at the dock")
+    assert state["last_reached"] == "dock" and state["target"] is None
+    config = config_of(home, "sensor", "last_reached")
+    assert config["state_topic"] == STATE
+
+
 def test_a_refused_command_says_why_and_moves_nothing(sim, home):
     before = sim.navigation()
     home.send(ROOT_TOPIC + "/goto/set", "garage")

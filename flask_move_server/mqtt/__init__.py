@@ -1,1 +1,1 @@
-"""The robot on the owner's MQTT broker: one connection, Home Assistant discovery, commands, state (and webhooks)."""
+"""Telling the owner's home systems: MQTT (Home Assistant, VDA 5050; one connection) and webhooks beside it."""
