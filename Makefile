@@ -7,6 +7,10 @@ VENV ?= .venv
 DEBIAN_VENV ?= .venv-debian
 PY := $(VENV)/bin/python
 PYTEST_ARGS ?=
+# Two workers (pytest-xdist): the browser's modules in one lane, the other real-time modules (sims,
+# roslaunch stacks, brokers) in another, every other module whole on whichever worker is free
+# (tests/conftest.py). `make test XDIST=` runs in one process.
+XDIST ?= -n 2 --dist loadgroup
 
 # ROS 1 from Debian (on Ubuntu 20.04 + Noetic these come from /opt/ros/noetic instead), and numpy
 # (the explorer's frontier search: Debian's and Raspberry Pi OS's python3-numpy).
@@ -23,7 +27,8 @@ MQTT_TEST_DEBS := mosquitto
 BROWSER_TEST_DEBS := chromium
 # Debian's own builds of our Python dependencies: what a Pi gets from apt (make test-debian).
 DEBIAN_PY_DEBS := python3-flask python3-waitress python3-yaml python3-requests python3-zeroconf \
-	python3-serial python3-paho-mqtt python3-pytest python3-pytest-timeout python3-hypothesis python3-setuptools
+	python3-serial python3-paho-mqtt python3-pytest python3-pytest-timeout python3-pytest-xdist \
+	python3-hypothesis python3-setuptools
 
 .PHONY: setup test lint pytest test-debian run demo bench clean
 
@@ -53,7 +58,7 @@ lint: setup
 		flask_move_server tests bench setup.py
 
 pytest: setup
-	$(PY) -m pytest $(PYTEST_ARGS)
+	$(PY) -m pytest $(XDIST) $(PYTEST_ARGS)
 
 test: lint pytest
 
@@ -75,7 +80,7 @@ DEBIAN_SKIPS := --ignore=tests/test_stack_launched.py --ignore=tests/test_modes_
 # need no .venv of make test's.
 test-debian: $(DEBIAN_VENV)/.installed
 	FLASK_MOVE_SERVER_PYTHON=$(abspath $(DEBIAN_VENV))/bin/python \
-		$(DEBIAN_VENV)/bin/python -m pytest -p no:cacheprovider $(DEBIAN_SKIPS) $(PYTEST_ARGS)
+		$(DEBIAN_VENV)/bin/python -m pytest -p no:cacheprovider $(XDIST) $(DEBIAN_SKIPS) $(PYTEST_ARGS)
 
 # The waypoints are copied once to build/run/, where the server also keeps mode.json and maps/.
 RUN_WAYPOINTS ?= build/run/waypoints.yaml

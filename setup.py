@@ -43,7 +43,7 @@ setup(
         "paho-mqtt>=1.5",  # explore/: frontiers and reachability, vectorised (Debian's python3-numpy; 1.17 on Noetic)
     ],
     extras_require={
-        "test": ["pytest>=7", "pytest-timeout>=2", "hypothesis>=6", "ruff>=0.4", "vermin>=1.5",
+        "test": ["pytest>=7", "pytest-timeout>=2", "pytest-xdist>=2.5", "hypothesis>=6", "ruff>=0.4", "vermin>=1.5",
                  # The API fuzz run (tests/test_openapi_fuzz.py), written for both: pip takes 4.x where the
                  # Python has one (3.9+; the newest need 3.11), 3.x on 3.8.
                  "schemathesis>=3.27,<5",

@@ -19,6 +19,28 @@ pytest_plugins = ["tests.robot_fixtures"]
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
 
+# Modules that drive a simulated robot, a browser or a roslaunch stack in real time. Under
+# `make test`'s two pytest-xdist workers (Makefile XDIST) the browser's modules run one after the
+# other in one lane and the other real-time modules in another, so at most two of them share the two
+# cores at a time; every other module stays whole on one worker (its module fixtures' state intact),
+# each worker taking the next as it frees up.
+REALTIME = ("sim", "modes_robot", "stack_launched", "launch", "motion_stop", "stop_path",
+            "phantom_goals", "mdns_lan", "server_process", "estop", "home_assistant", "mqtt_resilience")
+
+
+@pytest.hookimpl(tryfirst=True)
+def pytest_collection_modifyitems(config, items):
+    for item in items:
+        module = os.path.basename(str(item.fspath))[len("test_"):-len(".py")]
+        if module.startswith("page"):
+            lane = "browser"
+        elif any(part in module for part in REALTIME):
+            lane = "realtime"
+        else:
+            lane = module
+        item.add_marker(pytest.mark.xdist_group(lane))
+
+
 def pytest_report_header(config):
     import flask
     import waitress
