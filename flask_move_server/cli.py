@@ -304,8 +304,9 @@ class Server:
 
 
 def build_robot(config, node, drive, estop=None):
-    """The Robot facade over ``node``: pose tracker, navigator, teleop, ``drive``, the e-stop latch."""
+    """The Robot facade over ``node``: pose tracker, navigator, teleop, ``drive``, the e-stop latch, the battery."""
     from flask_move_server.robot import Robot
+    from flask_move_server.ros.battery import BatteryMonitor
     from flask_move_server.ros.navigator import Navigator
     from flask_move_server.ros.pose import PoseTracker
     from flask_move_server.ros.teleop import Teleop
@@ -313,7 +314,8 @@ def build_robot(config, node, drive, estop=None):
     pose = PoseTracker(config.ros.frames, config.navigation.amcl_pose_topic, node, config.navigation.pose_max_age)
     navigator = Navigator(config.navigation, config.ros.frames, node, pose)
     teleop = Teleop(config.teleop, node)
-    return Robot(node, navigator, pose, teleop, drive, estop)
+    battery = BatteryMonitor(config.battery.topic, node)
+    return Robot(node, navigator, pose, teleop, drive, estop, battery)
 
 
 def main(argv=None):
