@@ -59,7 +59,7 @@ class Server:
         store = WaypointStore(self.config.waypoints.file, self.config.waypoints.lock_timeout)
         self.events = EventBus()
         stack.callback(self.events.close)  # closed last of all: streams end after the robot stopped
-        robot = self._build_robot(stack)
+        robot = self._build_robot(stack, store)
         self._report(stack, robot)
         self.modes = self._build_modes(stack)
         maps = self._build_maps(stack, store)
@@ -167,7 +167,7 @@ class Server:
         stack.callback(advertiser.close)
         advertiser.start()
 
-    def _build_robot(self, stack):
+    def _build_robot(self, stack, store):
         from flask_move_server.drive import make_drive
         from flask_move_server.drive.estop import EStop
         from flask_move_server.ros.node import RosNode
@@ -184,7 +184,8 @@ class Server:
             from flask_move_server.sim.runner import Simulation
 
             # With the sim as the modes' stack, the mode manager's restore() starts the mode.
-            self._simulation = Simulation(cfg, node, drive, autostart=cfg.stack_kind() != "sim")
+            self._simulation = Simulation(cfg, node, drive, autostart=cfg.stack_kind() != "sim",
+                                          dock=lambda: dock_position(store))
             stack.callback(self._simulation.close)
         robot = build_robot(cfg, node, drive, estop)
         if self._simulation is not None:
@@ -316,6 +317,17 @@ def build_robot(config, node, drive, estop=None):
     teleop = Teleop(config.teleop, node)
     battery = BatteryMonitor(config.battery.topic, node)
     return Robot(node, navigator, pose, teleop, drive, estop, battery)
+
+
+def dock_position(store):
+    """(x, y) of the ``dock`` waypoint of the waypoints in use (the active map's), or None without one."""
+    from flask_move_server.errors import UnknownWaypoint
+
+    try:
+        dock = store.get("dock")
+    except UnknownWaypoint:
+        return None
+    return dock.x, dock.y
 
 
 def main(argv=None):
