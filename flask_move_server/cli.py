@@ -45,6 +45,8 @@ class Server:
         self.modes = None
         self.runs = None
         self.explorer = None
+        self.mqtt = None
+        self.happenings = None
         self._simulation = None
         self.events = None
         self._stack = contextlib.ExitStack()
@@ -65,6 +67,7 @@ class Server:
         maps = self._build_maps(stack, store)
         runs = self._build_runs(stack, robot, store)
         explorer = self.explorer = self._build_explorer(stack, robot)
+        self.happenings = self._build_happenings(stack, robot)
         app = create_app(self.config, robot, store, token=self.config.resolved_token(), events=self.events,
                          modes=self.modes, maps=maps, doctor=self._build_doctor(robot), runs=runs,
                          explorer=explorer)
@@ -75,6 +78,7 @@ class Server:
         log.info("serving the API on http://%s:%d (waypoints: %s, %d loaded)",
                  self.config.server.host, self.port, store.path, len(store.all()))
         self._advertise(stack)
+        self.mqtt = self._build_mqtt(stack, app, store)
         self._node.start()
         self.modes.restore()  # in the background: the remembered mode's stack starts once ROS answers
         return self
@@ -127,6 +131,48 @@ class Server:
         stack.callback(explorer.close)
         robot.explorer = explorer
         return explorer
+
+    def _build_happenings(self, stack, robot):
+        """What the robot did, by name (arrived, failed, run_done, estop, explore_done), for MQTT and for
+        the webhooks ``webhooks:`` lists (POSTed from a queue of their own); both closed before the robot."""
+        from flask_move_server.happenings import Happenings
+
+        happenings = Happenings(robot, self.events)
+        stack.callback(happenings.close)
+        if self.config.webhooks:
+            from flask_move_server.mqtt.webhooks import Webhooks
+
+            webhooks = Webhooks(self.config.webhooks, self.config.mdns.hostname, happenings)
+            stack.callback(webhooks.close)
+        return happenings
+
+    def _build_mqtt(self, stack, app, store):
+        """The robot on the owner's MQTT broker (``mqtt.enabled``): Home Assistant's discovery, its
+        commands and the state topic, on one connection made in the background; None when off."""
+        cfg = self.config
+        if not cfg.mqtt.enabled:
+            return None
+        from flask_move_server.mqtt.commands import Commands
+        from flask_move_server.mqtt.home_assistant import HomeAssistant, device_info
+        from flask_move_server.mqtt.link import MqttLink
+        from flask_move_server.mqtt.robot_state import RobotState
+
+        name = cfg.mdns.hostname
+        link = MqttLink(cfg.mqtt, name)
+        stack.callback(link.close)  # closed after the parts publishing on it: "offline" is the last word
+        url = "http://{}.local:{}/".format(name, self.port)
+        home = HomeAssistant(link, cfg.mqtt.home_assistant, name, device_info(name, cfg.mdns.instance or name, url),
+                             store, self.robot, self.events)
+        commands = Commands(link, self.robot, store, self.runs, changed=lambda: state.changed())
+        happenings = self.happenings
+        state = RobotState(link, self.robot, self.modes, self.runs, self.explorer, self.events,
+                           refused=lambda: commands.refused, battery_heard=home.battery_heard,
+                           last_reached=lambda: (happenings.last_reached or {}).get("name"))
+        happenings.listen(lambda name, data: state.changed())  # a goal's end told at once, not a second later
+        for part in (home, state):
+            stack.callback(part.start().close)
+        app.extensions["flask_move_server"]["mqtt"] = link
+        return link.start()
 
     def _build_doctor(self, robot):
         """The first-boot doctor: ROS as the server's node sees it, and this machine."""

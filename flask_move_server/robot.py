@@ -13,7 +13,7 @@ from flask_move_server.errors import NavigationFailed, NavigationUnavailable, Sh
 _SHUTTING_DOWN = "The server is shutting down: the robot was stopped. Send the command again once it is back."
 STOPPED = "Stopped (POST /stop)."
 ESTOP = "The e-stop was engaged ({})."
-ESTOP_SOURCES = {"api": "POST /estop", "button": "its button"}
+ESTOP_SOURCES = {"api": "POST /estop", "button": "its button", "mqtt": "Home Assistant (MQTT)"}
 SHUT_DOWN = "The server stopped while this run was under way; resume it to go on."
 
 

@@ -30,6 +30,9 @@ def parse_args(argv):
     parser.add_argument("--no-mdns", action="store_true", help="do not advertise robot.local over mDNS")
     parser.add_argument("--insecure", action="store_true", help="allow serving the network without a token")
     parser.add_argument("--sim", action="store_true", help="run a simulated robot and world (no hardware)")
+    parser.add_argument("--mqtt", metavar="HOST[:PORT]",
+                        help="join this MQTT broker (Home Assistant, docs/home-assistant.md): mqtt.enabled with its "
+                             "host and port (1883 unless given); user and TLS come from the config")
     parser.add_argument("--map", metavar="MAP.yaml", help="with --sim: the map_server map to simulate")
     parser.add_argument("--log-level", default="INFO", choices=LOG_LEVELS)
     parser.add_argument("--version", action="version", version="%(prog)s " + __version__)
@@ -70,3 +73,17 @@ def _apply_flags(config, args):
         config.mdns.enabled = False
     if args.insecure:
         config.server.insecure = True
+    if args.mqtt:
+        _apply_mqtt(config.mqtt, args.mqtt)
+
+
+def _apply_mqtt(mqtt, broker):
+    """``--mqtt HOST[:PORT]``: MQTT on, to that broker."""
+    host, _, port = broker.rpartition(":") if broker.count(":") == 1 else (broker, "", "")
+    if port:
+        if not port.isdigit() or not 0 < int(port) <= 65535:
+            raise ConfigError("--mqtt", None, "must be HOST or HOST:PORT, the port 1 to 65535 (got {!r})".format(
+                broker))
+        mqtt.port = int(port)
+    mqtt.host = host.strip("[]") or "localhost"
+    mqtt.enabled = True

@@ -2,8 +2,8 @@
 
 Generic: it knows dataclasses, ``Optional``, ``Literal``, lists, dicts and scalars, and nothing of
 robots. A field may carry metadata the loader acts on: ``check`` (a function returning a reason
-or None, see :func:`checked`), ``path`` (relative to the file's folder, see :func:`path_field`)
-and ``internal`` (not a key of the file). Every problem is a
+or None, see :func:`checked`; a key whose default fails its check must be given), ``path``
+(relative to the file's folder, see :func:`path_field`) and ``internal`` (not a key of the file). Every problem is a
 :class:`~flask_move_server.errors.ConfigError` naming the source, the dotted key and the reason;
 an unknown key suggests the closest known one, because a typo must not fall back to a default.
 """
@@ -52,7 +52,19 @@ def build(cls, data, source="(config)", base_dir=".", prefix=""):
         problem = check(values[name]) if check and values[name] is not None else None
         if problem:
             raise ConfigError(source, key, "{} (got {!r})".format(problem, value))
+    _refuse_missing(fields, data, source, prefix)
     return cls(**values)
+
+
+def _refuse_missing(fields, data, source, prefix):
+    """A checked key whose default fails its own check (a webhook's ``url: ""``) must be given."""
+    for name, f in fields.items():
+        check = f.metadata.get("check")
+        if name in data or not check or f.default is dataclasses.MISSING:
+            continue
+        problem = check(f.default) if f.default is not None else None
+        if problem:
+            raise ConfigError(source, prefix + name, "missing: it {}".format(problem))
 
 
 def _refuse_unknown(data, fields, source, prefix, moved):

@@ -28,6 +28,7 @@ class EStop:
         self._latched = False
         self._source = None
         self._since = None
+        self._engagements = 0
         self._listeners = []
         self._release_checks = []
 
@@ -43,12 +44,19 @@ class EStop:
     def latched(self):
         return self._latched
 
+    @property
+    def engagements(self):
+        """How many times the latch was engaged (a press while latched is not one): a listener of
+        :meth:`when_engaged` tells a new engagement from a repeated press by it."""
+        return self._engagements
+
     def engage(self, source):
         """Latch (``source``: who, e.g. ``api``, ``button``) and stop everything; True when newly latched."""
         with self._lock:
             newly = not self._latched
             if newly:
                 self._latched, self._source, self._since = True, source, self._clock()
+                self._engagements += 1
         if newly:
             log.warning("e-stop engaged by %s: motors halted, goals and teleop refused until released", source)
         for callback in self._listeners:  # again on a repeated press: stopping twice is harmless

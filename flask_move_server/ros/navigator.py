@@ -8,6 +8,7 @@ confirmed it yet (action mode; topic mode has no confirmation, so ``canceled``
 at once). The first end of a goal is its end: when the ROS master stops
 answering, a goal under way becomes ``aborted`` with a message (its cancel is
 still sent), and a later word from move_base about it changes nothing.
+:meth:`Navigator.when_ended` tells each goal's end, once, to whoever listens (happenings.py).
 """
 
 import logging
@@ -23,7 +24,7 @@ from geometry_msgs.msg import PoseStamped
 from move_base_msgs.msg import MoveBaseAction, MoveBaseActionGoal, MoveBaseGoal
 
 from flask_move_server.errors import NavigationUnavailable, RosUnavailable
-from flask_move_server.goal_endings import failure_sentence, replaced_end, said_sentence
+from flask_move_server.goal_endings import failure_sentence, replaced_end, replaced_sentence, said_sentence
 from flask_move_server.log_limits import Throttled
 from flask_move_server.ros import master
 from flask_move_server.ros.action_status import read_status_lightly
@@ -86,6 +87,7 @@ class Navigator:
         self._closed = False
         self._aside = None  # a sentence (or "") while an ended goal is set aside: /status says idle
         self.trips = None  # a TripRecord keeping the goal under way on disk, or None
+        self._end_listeners = []  # callback(seq, state, target, pose, why), see when_ended
         self._goal_lines = Throttled(log, "goal lines", burst=GOAL_LINES_BURST)  # a goal storm: not 300 lines/s
         node.when_ready(self._setup)
         node.when_lost(self._master_lost)
@@ -106,31 +108,49 @@ class Navigator:
             self._goal_pub = direct_publisher(self._config.simple_goal_topic, PoseStamped, 1)
             self._cancel_pub = direct_publisher(self._config.action + "/cancel", GoalID, 1)
 
+    def when_ended(self, callback):
+        """Call ``callback(seq, state, target, pose, why)`` once for each goal that ends.
+
+        ``state``: ``succeeded``, ``aborted`` (also a goal move_base lost, or one given up: see
+        :meth:`abandon`), ``rejected`` or ``canceled`` (by a cancel, or replaced by a newer goal
+        while under way: ``why`` says which); ``target`` the waypoint name or None, ``pose`` the
+        goal's Pose2D, ``why`` the sentence ``wait`` gives (None when it arrived). Called in the
+        thread that ended the goal (actionlib's, a request's), outside the navigator's locks: keep
+        it short; an exception is logged. A goal whose end nobody can know (topic mode, never
+        canceled) is never told.
+        """
+        self._end_listeners.append(callback)
+
     # commands ----------------------------------------------------------------
 
     def goto(self, goal):
         """Send ``goal`` (a Goal); returns its sequence number. Replaces any goal under way."""
         self._check_reachable()
-        with self._sending:
-            with self._cond:
-                self._keep_end()
-                self._seq += 1
-                seq = self._seq
-                self._goal, self._state, self._feedback_pose, self._message = goal, ACTIVE, None, None
-                self._aside = None
-                self._cond.notify_all()
-            if self._client is not None:
-                _settle_last_goal(self._client)
-                self._expect_acknowledgement(seq)
-                self._client.send_goal(
-                    self._goal_message(goal.pose),
-                    done_cb=lambda status, result: self._done(seq, status),
-                    active_cb=lambda: self._acknowledged(seq),
-                    feedback_cb=lambda feedback: self._feedback(seq, feedback),
-                )
-                self._spare_message = MoveBaseGoal()  # the next goal's, built once this one is on its way
-            else:
-                self._goal_pub.publish(pose_stamped(goal.pose, self._frame, rospy.Time.now()))
+        replaced = None
+        try:
+            with self._sending:
+                with self._cond:
+                    replaced = self._replaced_end()
+                    self._keep_end()
+                    self._seq += 1
+                    seq = self._seq
+                    self._goal, self._state, self._feedback_pose, self._message = goal, ACTIVE, None, None
+                    self._aside = None
+                    self._cond.notify_all()
+                if self._client is not None:
+                    _settle_last_goal(self._client)
+                    self._expect_acknowledgement(seq)
+                    self._client.send_goal(
+                        self._goal_message(goal.pose),
+                        done_cb=lambda status, result: self._done(seq, status),
+                        active_cb=lambda: self._acknowledged(seq),
+                        feedback_cb=lambda feedback: self._feedback(seq, feedback),
+                    )
+                    self._spare_message = MoveBaseGoal()  # the next goal's, built once this one is on its way
+                else:
+                    self._goal_pub.publish(pose_stamped(goal.pose, self._frame, rospy.Time.now()))
+        finally:
+            self._tell_end(replaced)  # the replaced goal's end: after the new goal is on its way
         self._goal_lines.info("goal %d: %s %s", seq, goal.target or "pose", goal.pose.as_dict())
         if self.trips is not None:
             self.trips.started(goal)
@@ -161,9 +181,11 @@ class Navigator:
                 self._state = CANCELING if self._client is not None else CANCELED
                 if newly:
                     self._cancel_sent = time.monotonic()
+                ended = self._end_of_current() if self._state == CANCELED else None
                 self._cond.notify_all()
             self._send_cancel()
         self._goal_lines.info("goal %d: cancel %s", seq, "requested" if newly else "sent again")
+        self._tell_end(ended)
         return newly
 
     def _send_cancel(self):
@@ -207,6 +229,35 @@ class Navigator:
             self._ends[self._seq] = (self._state, self._message, self._goal.target if self._goal else None)
             if len(self._ends) > ENDS_KEPT:
                 self._ends.popitem(last=False)
+
+    def _replaced_end(self):
+        """Lock held, a newer goal about to replace this one: its end ``(seq, state, target, pose, why)``
+        for :meth:`when_ended` when it was under way (``canceled``, "replaced by a newer goal", or the
+        cancel's sentence when one was sent), else None (its end was told when it came)."""
+        if not self._seq or self._state not in UNDER_WAY:
+            return None
+        target = self._goal.target if self._goal else None
+        if self._state == ACTIVE:
+            why = replaced_sentence(target)
+        else:
+            why = self._message or failure_sentence(CANCELED, target)
+        return self._seq, CANCELED, target, self._goal.pose if self._goal else None, why
+
+    def _end_of_current(self):
+        """Lock held, the current goal just ended: ``(seq, state, target, pose, why)`` for :meth:`when_ended`."""
+        goal = self._goal
+        return (self._seq, self._state, goal.target if goal else None, goal.pose if goal else None,
+                self._why(self._state))
+
+    def _tell_end(self, end):
+        """Tell ``end`` (or nothing, for None) to every :meth:`when_ended` listener; no lock held."""
+        if end is None:
+            return
+        for callback in list(self._end_listeners):
+            try:
+                callback(*end)
+            except Exception:  # a listener's bug must not lose the goal's end for the others, nor break actionlib
+                log.exception("goal %d: a listener of its end failed", end[0])
 
     def release_waiters(self):
         """Wake every :meth:`wait`, now and from now on: the server is stopping."""
@@ -339,14 +390,17 @@ class Navigator:
         return text.strip() or None
 
     def _finish(self, seq, state, said=None):
+        ended = None
         with self._cond:
             if seq == self._seq and self._state in UNDER_WAY:  # the first end of a goal is its end
                 self._state = state
                 if said:
                     self._message = said_sentence(state, self._goal.target if self._goal else None, said)
+                ended = self._end_of_current()
                 self._cond.notify_all()
                 if self.trips is not None:
                     self.trips.ended()
+        self._tell_end(ended)
 
     def _master_lost(self):
         """No master: move_base's word may never come, so a goal under way ends ``aborted`` now."""
@@ -362,6 +416,7 @@ class Navigator:
             if self._state not in UNDER_WAY or (seq is not None and seq != self._seq):
                 return False
             seq, self._state, self._message = self._seq, ABORTED, why
+            ended = self._end_of_current()
             self._cond.notify_all()
             if self.trips is not None:
                 self.trips.ended()
@@ -370,6 +425,7 @@ class Navigator:
             self._send_cancel()  # over the open connection: move_base must not resume it later
         except Exception as exc:
             log.warning("goal %d: could not send its cancel: %s", seq, exc)
+        self._tell_end(ended)
         return True
 
     def _acknowledged(self, seq):

@@ -55,8 +55,8 @@ def build(config):
         "/waypoints": {"get": _operation("List the waypoints", None, {200: _json(_object(
             {"waypoints": {"type": "array", "items": _ref("Waypoint")}}))})},
         "/waypoints/{name}": _waypoint_item(),
-        "/status": {"get": _operation("Pose, navigation, teleop, motors, e-stop, battery, ROS, waypoints file", None,
-                                      {200: _json(_status())})},
+        "/status": {"get": _operation("Pose, navigation, teleop, motors, e-stop, battery, ROS, waypoints file, MQTT",
+                                      None, {200: _json(_status())})},
         "/health": {"get": _open(_operation("Is the server up, ROS connected, move_base ready?", None, {
             200: _json(_object({"status": {"enum": ["ok"]}, "ros": {"type": "string"},
                                 "move_base": {"enum": ["ready", "unavailable"]}}))}))},

@@ -138,6 +138,8 @@ def status():
     body["clock"] = robot_clock()
     body["waypoints"] = {"file": _store().path, "problem": _store().problem}
     body["mode"] = current_app.extensions["flask_move_server"]["modes"].status()
+    mqtt = current_app.extensions["flask_move_server"].get("mqtt")
+    body["mqtt"] = mqtt.status() if mqtt is not None else {"state": "off"}
     return jsonify(body)
 
 

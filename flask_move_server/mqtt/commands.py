@@ -1,0 +1,103 @@
+"""The commands Home Assistant (or any MQTT client the broker lets in) sends the robot.
+
+Each goes through the same checks and into the same code paths as its HTTP twin: a goto is
+``Robot.goto`` (the e-stop latch, the mode's goal gate, an unknown waypoint refuse it), a route is
+a run of the one executor (trigger ``mqtt``), Stop is ``Robot.stop``. A refusal is kept as
+``refused`` ({"command", "message", "at"}) for the state topic, where Home Assistant shows it on
+the Status sensor's attributes; the next command that is taken clears it. Pure: no paho, no rospy.
+"""
+
+import datetime
+import logging
+
+from flask_move_server.errors import MoveServerError, RunConflict
+from flask_move_server.geometry import Goal, Pose2D
+
+log = logging.getLogger(__name__)
+
+SET, PRESS = "set", "press"
+DOCK = "dock"
+STOPPED = "Stopped from Home Assistant (MQTT)."
+GOAL_FROM_MQTT = "A goal to {} (MQTT) took the robot elsewhere."
+MAX_NAME = 256  # characters of a waypoint or route name taken (a name is at most 64; more is refused by its check)
+
+
+class Commands:
+    """``<root>/goto/set``, ``route/set``, ``stop/press``, ``dock/press``, ``pause/press``,
+    ``resume/press``, ``estop/press`` on ``link``, acted on through the robot and the run executor."""
+
+    def __init__(self, link, robot, store, runs, changed=lambda: None, clock=None):
+        self._robot, self._store, self._runs = robot, store, runs
+        self._changed = changed  # the state topic tells the refusal (or its end)
+        self._clock = clock or _utc_now
+        self.refused = None
+        self.topics = {}
+        for name, kind, act in (("goto", SET, self.goto), ("route", SET, self.route), ("stop", PRESS, self.stop),
+                                ("dock", PRESS, self.dock), ("pause", PRESS, self.pause),
+                                ("resume", PRESS, self.resume), ("estop", PRESS, self.estop)):
+            topic = "{}/{}/{}".format(link.root, name, kind)
+            self.topics[name] = topic
+            link.handle(topic, self._guarded(name, act))
+
+    def _guarded(self, name, act):
+        def command(payload):
+            try:
+                act(payload.strip())
+            except MoveServerError as exc:
+                self._refuse(name, str(exc))
+            else:
+                self._taken()
+        return command
+
+    # the commands ------------------------------------------------------------
+
+    def goto(self, name):
+        waypoint = self._store.get(name[:MAX_NAME])  # UnknownWaypoint, with close names
+        target = Goal(Pose2D(waypoint.x, waypoint.y, waypoint.yaw), waypoint.name)
+        seq = self._robot.goto(target)
+        log.info("MQTT: goal %d to %s", seq, waypoint.name)
+
+    def dock(self, _payload):
+        self.goto(DOCK)
+
+    def route(self, name):
+        route = self._store.get_route(name[:MAX_NAME])
+        run = self._runs.start(route, "mqtt")
+        log.info("MQTT: run %d of %s", run["id"], route.name)
+
+    def stop(self, _payload):
+        self._robot.stop(STOPPED)
+
+    def estop(self, _payload):
+        self._robot.engage_estop("mqtt")
+
+    def pause(self, _payload):
+        run = self._runs.active()
+        if run is None or run["state"] != "running":
+            raise RunConflict("No run is under way to pause.")
+        self._runs.pause(run["id"])
+
+    def resume(self, _payload):
+        run = self._runs.active() or self._interrupted()
+        if run is None:
+            raise RunConflict("No paused or interrupted run to resume.")
+        self._runs.resume(run["id"])
+
+    def _interrupted(self):
+        return next((r for r in self._runs.runs() if r["state"] == "interrupted"), None)
+
+    # the refusal shown in Home Assistant -------------------------------------
+
+    def _refuse(self, name, message):
+        log.info("MQTT: %s refused: %s", name, message)
+        self.refused = {"command": name, "message": message, "at": self._clock()}
+        self._changed()
+
+    def _taken(self):
+        if self.refused is not None:
+            self.refused = None
+            self._changed()
+
+
+def _utc_now():
+    return datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")

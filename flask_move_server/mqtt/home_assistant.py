@@ -1,0 +1,155 @@
+"""Home Assistant's MQTT discovery: the robot appears in Home Assistant by itself, as one device.
+
+Retained configs under ``<prefix>/<component>/<robot>/<object>/config`` (docs/home-assistant.md):
+selects Go to (the active map's waypoints) and Route, buttons Stop, Dock, Pause, Resume, E-stop,
+sensors Status (its attributes: the sentence, the last refused command, the run), Target, Mode,
+Map, Last reached, Battery (once the robot has heard one), and the binary sensor E-stop. Every
+entity reads ``<root>/state`` and is available while ``<root>/availability`` says ``online``.
+
+Published at each connect and again when Home Assistant says ``online`` on ``<prefix>/status``
+(its birth message, after a restart); the selects again when the waypoints, the routes, the map or
+the mode change. With ``home_assistant.enabled: false`` each config is removed (an empty retained
+message), so the device leaves Home Assistant. :func:`discovery` is pure; :class:`HomeAssistant`
+publishes it from one thread, woken by those events. No paho here (the link publishes).
+"""
+
+import json
+import logging
+import threading
+
+from flask_move_server import __version__
+
+log = logging.getLogger(__name__)
+
+MANUFACTURER = "flask-move-server"
+MODEL = "ROS 1 robot"
+NONE = "None"  # what Home Assistant's MQTT select and sensor read as "no value"
+WAKING_KINDS = ("waypoints", "map", "mode")
+
+BUTTONS = (("stop", "Stop", "mdi:stop"), ("dock", "Dock", "mdi:home-import-outline"),
+           ("pause", "Pause", "mdi:pause"), ("resume", "Resume", "mdi:play"),
+           ("estop", "E-stop", "mdi:alert-octagon"))
+SENSORS = (("target", "Target", "mdi:map-marker-path", "value_json.target"),
+           ("mode", "Mode", "mdi:robot", "value_json.mode"),
+           ("map", "Map", "mdi:map", "value_json.map"),
+           ("last_reached", "Last reached", "mdi:map-marker-check", "value_json.last_reached"))
+
+
+def discovery(prefix, root, robot, device, waypoints, routes, battery_known, enabled=True):
+    """Every ``(config topic, payload)`` of the robot's entities; payload "" removes one."""
+    common = {"availability_topic": root + "/availability", "device": device,
+              "origin": {"name": MANUFACTURER, "sw_version": __version__}}
+    state = root + "/state"
+    configs = [
+        ("select", "goto", {"name": "Go to", "icon": "mdi:map-marker", "command_topic": root + "/goto/set",
+                            "options": list(waypoints), "state_topic": state,
+                            "value_template": _or_none("value_json.target")}),
+        ("select", "route", {"name": "Route", "icon": "mdi:map-marker-multiple", "command_topic": root + "/route/set",
+                             "options": list(routes), "state_topic": state,
+                             "value_template": _or_none("value_json.run.route if value_json.run else none")}),
+        ("sensor", "status", {"name": "Status", "icon": "mdi:robot-outline", "state_topic": state,
+                              "value_template": "{{ value_json.status }}", "json_attributes_topic": state,
+                              "json_attributes_template": "{{ {'message': value_json.message, 'refused': "
+                                                          "value_json.refused, 'run': value_json.run} | tojson }}"}),
+        ("binary_sensor", "estop", {"name": "E-stop", "device_class": "safety", "state_topic": state,
+                                    "value_template": "{{ 'ON' if value_json.estop else 'OFF' }}"}),
+    ]
+    configs += [("button", obj, {"name": name, "icon": icon, "command_topic": "{}/{}/press".format(root, obj),
+                                 "payload_press": "PRESS"}) for obj, name, icon in BUTTONS]
+    configs += [("sensor", obj, {"name": name, "icon": icon, "state_topic": state, "value_template": _or_none(value)})
+                for obj, name, icon, value in SENSORS]
+    configs.append(("sensor", "battery", {"name": "Battery", "device_class": "battery", "unit_of_measurement": "%",
+                                          "state_class": "measurement", "state_topic": state,
+                                          "value_template": _or_none("value_json.battery.percentage "
+                                                                     "if value_json.battery else none")}))
+    out = []
+    for component, obj, config in configs:
+        topic = "{}/{}/{}/{}/config".format(prefix, component, robot, obj)
+        keep = enabled and (obj != "battery" or battery_known)
+        unique_id = "{}_{}_{}_{}".format(MANUFACTURER, robot, component, obj)
+        payload = json.dumps(dict(common, unique_id=unique_id, **config), ensure_ascii=False, sort_keys=True)
+        out.append((topic, payload if keep else ""))
+    return out
+
+
+def _or_none(expression):
+    """A template that gives ``expression``, or None (Home Assistant's "no value") when it is empty."""
+    return "{{% set v = {} %}}{{{{ v if v not in (none, '') else '{}' }}}}".format(expression, NONE)
+
+
+def device_info(robot, name, configuration_url):
+    """The one device all entities belong to."""
+    return {"identifiers": ["{}_{}".format(MANUFACTURER, robot)], "name": name, "manufacturer": MANUFACTURER,
+            "model": MODEL, "sw_version": __version__, "configuration_url": configuration_url}
+
+
+class HomeAssistant:
+    """Publishes the discovery configs on ``link`` when they are due (see the module's docstring)."""
+
+    def __init__(self, link, config, robot_name, device, store, robot, events=None):
+        self._link, self._config, self._robot_name, self._device = link, config, robot_name, device
+        self._store, self._robot = store, robot
+        self.status_topic = config.discovery_prefix + "/status"
+        self._told = {}  # config topic -> payload last published
+        self._wake = threading.Event()
+        self._stop = threading.Event()
+        self._thread = None
+        link.when_connected(self.republish)
+        link.handle(self.status_topic, self._home_assistant_said, takes_retained=True)
+        if events is not None:
+            for kind in WAKING_KINDS:
+                events.listen(kind, lambda data: self._wake.set())
+
+    def start(self):
+        self._thread = threading.Thread(target=self._run, name="mqtt-discovery", daemon=True)
+        self._thread.start()
+        return self
+
+    def republish(self):
+        """Publish every config again (a connect, Home Assistant's birth)."""
+        self._told = {}
+        self._wake.set()
+
+    def battery_heard(self):
+        """The state has a battery now: its sensor is due (cheap when it already was)."""
+        self._wake.set()
+
+    def _home_assistant_said(self, payload):
+        if payload == "online":
+            log.info("MQTT: Home Assistant came online: publishing the discovery again")
+            self.republish()
+
+    def _run(self):
+        while not self._stop.is_set():
+            self._wake.wait()
+            self._wake.clear()
+            if self._stop.is_set():
+                return
+            try:
+                self.publish_due()
+            except Exception:
+                log.exception("MQTT: publishing Home Assistant's discovery failed")
+
+    def publish_due(self):
+        """Publish the configs that differ from the last published; the number published."""
+        if not self._link.connected:
+            return 0
+        told = 0
+        for topic, payload in self.configs():
+            if self._told.get(topic) != payload and self._link.publish(topic, payload, retain=True):
+                self._told[topic] = payload
+                told += 1
+        return told
+
+    def configs(self):
+        waypoints = [wp.name for wp in self._store.all()]
+        routes = [route.name for route in self._store.routes()]
+        battery_known = self._robot.status().get("battery") is not None
+        return discovery(self._config.discovery_prefix, self._link.root, self._robot_name, self._device,
+                         waypoints, routes, battery_known, enabled=self._config.enabled)
+
+    def close(self):
+        self._stop.set()
+        self._wake.set()
+        if self._thread is not None:
+            self._thread.join(timeout=2)

@@ -1,0 +1,149 @@
+"""``<root>/state``: what the robot is doing, one retained JSON object, told when it changes.
+
+``{"status", "message", "mode", "map", "target", "last_reached", "run", "estop", "pose",
+"battery", "refused"}`` (docs/home-assistant.md). One thread builds it once a second and at once
+when something is told on the event bus (a mode, a map, waypoints, a run, an exploration, the
+e-stop, a goal's end) and publishes it when it differs from the last one told. The pose alone
+changing is told at most once a second (``POSE_PERIOD``), and never more than ``MIN_PERIOD``
+apart anything else: a busy robot costs the broker a few messages a second at most.
+Pure: no paho (the link publishes), no rospy (the robot facade reads).
+"""
+
+import json
+import logging
+import threading
+import time
+
+log = logging.getLogger(__name__)
+
+PERIOD = 1.0  # s between looks when nothing is told
+POSE_PERIOD = 1.0  # s: a moving robot's pose, at most this often
+MIN_PERIOD = 0.2  # s between two states, whatever changed
+WAKING_KINDS = ("mode", "map", "waypoints", "run", "explore", "estop")
+RUNNING_EXPLORATION = ("starting", "exploring", "returning", "saving")
+NAVIGATION_STATUS = {"active": "moving", "canceling": "moving", "succeeded": "arrived", "aborted": "failed",
+                     "rejected": "failed", "lost": "failed", "canceled": "stopped"}
+
+
+class RobotState:
+    """Publishes the robot's state on ``<link.root>/state`` (retained) as it changes."""
+
+    def __init__(self, link, robot, modes=None, runs=None, explorer=None, events=None,
+                 refused=lambda: None, last_reached=lambda: None, battery_heard=lambda: None,
+                 clock=time.monotonic):
+        self.topic = link.root + "/state"
+        self._link, self._robot, self._modes, self._runs, self._explorer = link, robot, modes, runs, explorer
+        self._refused, self._last_reached, self._battery_heard = refused, last_reached, battery_heard
+        self._clock = clock
+        self._told = None  # (state without pose, pose) last published
+        self._pose_told_at = -POSE_PERIOD
+        self._wake = threading.Event()
+        self._stop = threading.Event()
+        self._thread = None
+        if events is not None:
+            for kind in WAKING_KINDS:
+                events.listen(kind, lambda data: self.changed())
+        link.when_connected(self.republish)
+
+    def start(self):
+        self._thread = threading.Thread(target=self._run, name="mqtt-state", daemon=True)
+        self._thread.start()
+        return self
+
+    def changed(self):
+        """Something happened: look now (never waits)."""
+        self._wake.set()
+
+    def republish(self):
+        """After a (re)connect: tell the state again, even unchanged."""
+        self._told = None
+        self._wake.set()
+
+    def _run(self):
+        while not self._stop.is_set():
+            self._wake.wait(PERIOD)
+            self._wake.clear()
+            if self._stop.is_set():
+                return
+            try:
+                self.tell()
+            except Exception:  # a part's bug must not end the state topic
+                log.exception("MQTT: building the robot's state failed")
+            self._stop.wait(MIN_PERIOD)
+
+    def tell(self):
+        """Build the state and publish it if it is news; True when published."""
+        state = self.build()
+        pose = state.pop("pose")
+        now = self._clock()
+        told = self._told
+        news = told is None or state != told[0]
+        pose_news = told is not None and pose != told[1] and now - self._pose_told_at >= POSE_PERIOD
+        if not (news or pose_news):
+            return False
+        if state["battery"] is not None and (told is None or told[0]["battery"] is None):
+            self._battery_heard()  # Home Assistant's Battery sensor is due
+        self._told = (state, pose)
+        self._pose_told_at = now
+        self._link.publish(self.topic, json.dumps(dict(state, pose=pose), ensure_ascii=False), retain=True)
+        return True
+
+    def build(self):
+        """The state as a dict (see the module's docstring)."""
+        status = self._robot.status()
+        nav = status.get("navigation") or {}
+        estop = bool((status.get("estop") or {}).get("latched"))
+        mode = self._modes.status() if self._modes is not None else {}
+        run = self._runs.active() if self._runs is not None else None
+        exploring = self._exploring()
+        return {
+            "status": _status(nav, status.get("teleop") or {}, estop, run, exploring),
+            "message": nav.get("message"),
+            "mode": mode.get("mode"),
+            "map": mode.get("map"),
+            "target": nav.get("target") if nav.get("state") in ("active", "canceling") else None,
+            "last_reached": self._last_reached(),
+            "run": _run_summary(run),
+            "estop": estop,
+            "pose": _pose(status.get("pose")),
+            "battery": status.get("battery"),
+            "refused": self._refused(),
+        }
+
+    def _exploring(self):
+        exp = self._explorer.current() if self._explorer is not None else None
+        return exp is not None and exp["state"] in RUNNING_EXPLORATION
+
+    def close(self):
+        self._stop.set()
+        self._wake.set()
+        if self._thread is not None:
+            self._thread.join(timeout=2)
+
+
+def _status(nav, teleop, estop, run, exploring):
+    """One word for what the robot does: estop, exploring, paused, moving, teleop, arrived, failed, stopped, idle."""
+    if estop:
+        return "estop"
+    if exploring:
+        return "exploring"
+    if run is not None and run["state"] == "paused":
+        return "paused"
+    if nav.get("state") in ("active", "canceling"):
+        return "moving"
+    if teleop.get("active"):
+        return "teleop"
+    return NAVIGATION_STATUS.get(nav.get("state"), "idle")
+
+
+def _run_summary(run):
+    if run is None:
+        return None
+    return {"id": run["id"], "route": run.get("route"), "state": run["state"]}
+
+
+def _pose(pose):
+    """The pose rounded to what a dashboard shows: cm and 0.01 rad (so jitter is not news)."""
+    if not pose:
+        return None
+    return {"x": round(pose["x"], 2), "y": round(pose["y"], 2), "yaw": round(pose["yaw"], 2)}

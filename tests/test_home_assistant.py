@@ -1,0 +1,205 @@
+"""Home Assistant over MQTT, against a real broker (Debian's mosquitto) and ``flask-move-server --sim``.
+
+What an owner sees in Home Assistant: the device and its entities appear by themselves (the
+discovery payloads, field by field), "Go to" sends the robot, Stop stops it, a new place appears
+among the options, a refused command says why on the Status sensor, and Home Assistant's restart
+(its birth message) brings everything back. The paho in use is whichever the venv has: PyPI's 2.x
+under ``make test``, Debian's 1.6 under ``make test-debian``.
+"""
+
+import json
+import shutil
+
+import pytest
+import requests
+
+from tests.conftest import ROOT, ServerProcess, free_port, stop_process, wait_for
+from tests.mqtt_broker import Broker, Listener, retained_on
+
+WAYPOINTS = ["kitchen", "office", "bedroom", "sofa", "dock"]  # config/waypoints.demo.yaml, in file order
+ROOT_TOPIC = "flask-move-server/robot"
+STATE = ROOT_TOPIC + "/state"
+PREFIX = "homeassistant"
+ENTITIES = {  # (component, object) -> name, as Home Assistant shows them
+    ("select", "goto"): "Go to", ("select", "route"): "Route",
+    ("button", "stop"): "Stop", ("button", "dock"): "Dock", ("button", "pause"): "Pause",
+    ("button", "resume"): "Resume", ("button", "estop"): "E-stop",
+    ("sensor", "status"): "Status", ("sensor", "target"): "Target", ("sensor", "mode"): "Mode",
+    ("sensor", "map"): "Map", ("sensor", "last_reached"): "Last reached",
+    ("binary_sensor", "estop"): "E-stop",
+}
+
+
+class MqttSim(ServerProcess):
+    """``flask-move-server --sim`` with MQTT on, talking to ``broker``."""
+
+    def __init__(self, tmp_path, broker, extra=""):
+        tmp_path.mkdir(parents=True, exist_ok=True)
+        waypoints = tmp_path / "waypoints.yaml"
+        shutil.copy(str(ROOT) + "/config/waypoints.demo.yaml", str(waypoints))
+        config = tmp_path / "sim.yaml"
+        config.write_text("sim:\n  speed_factor: 4.0\nmqtt:\n  enabled: true\n  host: 127.0.0.1\n"
+                          "  port: {}\n  keepalive: 5\n{}".format(broker.port, extra))
+        env = {"ROS_MASTER_URI": "http://127.0.0.1:{}".format(free_port()), "ROS_HOME": str(tmp_path),
+               "ROS_LOG_DIR": str(tmp_path / "log"), "ROS_IP": "127.0.0.1"}
+        super().__init__("--sim", "--config", str(config), "--port", "0", "--no-mdns",
+                         "--waypoints", str(waypoints), env=env, start_timeout=60)
+        self.port = int(self.url.rsplit(":", 1)[1])
+        wait_for(lambda: self.get("/health").json().get("move_base") == "ready", timeout=30,
+                 message="move_base stand-in ready")
+
+    def navigation(self):
+        return self.get("/status").json()["navigation"]
+
+
+@pytest.fixture(scope="module")
+def broker(tmp_path_factory):
+    b = Broker(tmp_path_factory.mktemp("broker"))
+    yield b
+    b.stop()
+
+
+@pytest.fixture(scope="module")
+def home(broker):
+    """Home Assistant's side: everything the broker carries."""
+    listener = Listener(broker)
+    yield listener
+    listener.close()
+
+
+@pytest.fixture(scope="module")
+def sim(tmp_path_factory, broker, home):
+    server = MqttSim(tmp_path_factory.mktemp("ha_sim"), broker)
+    yield server
+    stop_process(server.proc)
+
+
+def config_of(home, component, obj):
+    return home.wait_json("{}/{}/robot/{}/config".format(PREFIX, component, obj),
+                          message="the discovery config of {} {}".format(component, obj))
+
+
+def test_the_robot_appears_as_one_device_with_every_entity(sim, home, broker):
+    assert home.wait_last(ROOT_TOPIC + "/availability") == "online"
+    device = {"identifiers": ["flask-move-server_robot"], "name": "robot", "manufacturer": "flask-move-server",
+              "model": "ROS 1 robot", "configuration_url": "http://robot.local:{}/".format(sim.port)}
+    unique_ids = set()
+    for (component, obj), name in ENTITIES.items():
+        config = config_of(home, component, obj)
+        assert config["name"] == name
+        assert config["availability_topic"] == ROOT_TOPIC + "/availability"
+        assert {k: config["device"][k] for k in device} == device
+        assert config["device"]["sw_version"]
+        unique_ids.add(config["unique_id"])
+        if component in ("select", "button"):
+            kind = "set" if component == "select" else "press"
+            assert config["command_topic"] == "{}/{}/{}".format(ROOT_TOPIC, obj, kind)
+        if component in ("select", "sensor", "binary_sensor"):
+            assert config["state_topic"] == STATE
+    assert len(unique_ids) == len(ENTITIES)  # each entity its own unique_id
+    # Retained: Home Assistant started after the robot (a fresh subscriber) still finds them all.
+    assert json.loads(retained_on(broker, "{}/select/robot/goto/config".format(PREFIX)))["options"] == WAYPOINTS
+    assert retained_on(broker, ROOT_TOPIC + "/availability") == "online"
+    assert json.loads(retained_on(broker, STATE))["mode"] == "navigation"
+    assert config_of(home, "select", "goto")["options"] == WAYPOINTS
+    assert config_of(home, "button", "stop")["payload_press"] == "PRESS"
+    assert config_of(home, "binary_sensor", "estop")["device_class"] == "safety"
+    # No battery is heard on the robot's topic yet: no Battery sensor to show "unknown" for ever.
+    assert not home.last("{}/sensor/robot/battery/config".format(PREFIX))
+
+
+def test_the_state_says_what_the_robot_does(sim, home):
+    state = home.wait_json(STATE)
+    assert set(state) == {"status", "message", "mode", "map", "target", "last_reached", "run", "estop", "pose",
+                          "battery", "refused"}
+    assert state["mode"] == "navigation" and state["estop"] is False
+    assert set(state["pose"]) == {"x", "y", "yaw"}
+
+
+def test_go_to_sends_the_robot_and_stop_stops_it(sim, home):
+    home.send(ROOT_TOPIC + "/goto/set", "kitchen")
+    wait_for(lambda: sim.navigation()["target"] == "kitchen" and sim.navigation()["state"] == "active",
+             message="the robot on its way to the kitchen")
+    moving = home.wait_json(STATE, lambda s: s["status"] == "moving" and s["target"] == "kitchen")
+    assert moving["refused"] is None
+    home.send(ROOT_TOPIC + "/stop/press", "PRESS")
+    wait_for(lambda: sim.navigation()["state"] == "canceled", message="the goal canceled by Stop")
+    home.wait_json(STATE, lambda s: s["status"] == "stopped" and s["target"] is None)
+    motors = sim.get("/status").json()["motors"]
+    wait_for(lambda: sim.get("/status").json()["motors"]["left"] == 0, message="the motors at rest") or motors
+
+
+def test_dock_drives_home_and_the_house_hears_it_arrived(sim, home):
+    home.send(ROOT_TOPIC + "/dock/press", "PRESS")
+    home.wait_json(STATE, lambda s: s["target"] == "dock", message="on its way to the dock")
+    state = home.wait_json(STATE, lambda s: s["status"] == "arrived", timeout=60, message="arrived at the dock")
+    assert state["last_reached"] == "dock" and state["target"] is None
+    config = config_of(home, "sensor", "last_reached")
+    assert config["state_topic"] == STATE
+
+
+def test_a_refused_command_says_why_and_moves_nothing(sim, home):
+    before = sim.navigation()
+    home.send(ROOT_TOPIC + "/goto/set", "garage")
+    refused = home.wait_json(STATE, lambda s: s["refused"] is not None)["refused"]
+    assert refused["command"] == "goto" and "garage" in refused["message"]
+    assert sim.navigation()["goal_id"] == before["goal_id"]  # no goal sent
+    home.send(ROOT_TOPIC + "/pause/press", "PRESS")
+    refused = home.wait_json(STATE, lambda s: (s["refused"] or {}).get("command") == "pause")["refused"]
+    assert "No run" in refused["message"]
+
+
+def test_the_e_stop_from_home_assistant_latches_and_refuses_goals(sim, home):
+    home.send(ROOT_TOPIC + "/estop/press", "PRESS")
+    home.wait_json(STATE, lambda s: s["estop"] is True and s["status"] == "estop")
+    assert sim.get("/status").json()["estop"]["source"] == "mqtt"
+    home.send(ROOT_TOPIC + "/goto/set", "sofa")
+    refused = home.wait_json(STATE, lambda s: (s["refused"] or {}).get("command") == "goto")["refused"]
+    assert "e-stop" in refused["message"].lower()
+    assert sim.navigation()["state"] != "active"
+    assert sim.post("/estop/release").status_code == 200
+    home.wait_json(STATE, lambda s: s["estop"] is False)
+
+
+def test_a_new_place_and_a_new_route_appear_among_the_options(sim, home):
+    assert sim.get("/status").status_code == 200
+    r = requests.put(sim.url + "/waypoints/porch", json={"x": 1.0, "y": 0.5, "yaw": 0.0}, timeout=10)
+    assert r.status_code == 201
+    goto = home.wait_json("{}/select/robot/goto/config".format(PREFIX), lambda c: "porch" in c["options"],
+                          message="porch among the Go to options")
+    assert goto["options"] == WAYPOINTS + ["porch"]
+    r = requests.put(sim.url + "/routes/rounds", json={"waypoints": ["porch", "dock"]}, timeout=10)
+    assert r.status_code == 201, r.text
+    home.wait_json("{}/select/robot/route/config".format(PREFIX), lambda c: c["options"] == ["rounds"],
+                   message="the route among the Route options")
+
+
+def test_a_route_from_home_assistant_is_a_run(sim, home):
+    home.send(ROOT_TOPIC + "/route/set", "rounds")
+    state = home.wait_json(STATE, lambda s: s["run"] is not None and s["run"]["route"] == "rounds")
+    assert state["run"]["state"] == "running"
+    run = sim.get("/runs").json()["runs"][0]
+    assert run["route"] == "rounds" and run["trigger"] == "mqtt"
+    home.send(ROOT_TOPIC + "/pause/press", "PRESS")
+    home.wait_json(STATE, lambda s: s["status"] == "paused")
+    home.send(ROOT_TOPIC + "/stop/press", "PRESS")
+    wait_for(lambda: sim.get("/runs").json()["runs"][0]["state"] == "canceled", message="the run ended by Stop")
+
+
+def test_home_assistant_s_restart_brings_the_discovery_back(sim, home):
+    home.clear()
+    home.send(PREFIX + "/status", "online")
+    for component, obj in ENTITIES:
+        config_of(home, component, obj)  # each published again
+
+
+def test_a_goto_to_the_robot_s_own_topic_is_taken_only_from_its_command_topic(sim, home):
+    """The state topic is the robot's: a client writing on it does not command anything."""
+    goal = sim.navigation()["goal_id"]
+    home.send(STATE, json.dumps({"status": "moving", "target": "kitchen"}))
+    home.send(ROOT_TOPIC + "/goto", "kitchen")
+    home.send(ROOT_TOPIC + "/goto/set/extra", "kitchen")
+    import time
+
+    time.sleep(1.0)
+    assert sim.navigation()["goal_id"] == goal
