@@ -187,6 +187,36 @@ def test_without_a_percentage_the_voltage_is_the_news():
     assert not battery_news(dict(before, percentage=50.0), dict(before, percentage=50.5, voltage=11.0))
 
 
+class Link:
+    """The MQTT link as RobotState uses it: what it publishes, kept."""
+
+    root = "flask-move-server/robo"
+
+    def __init__(self):
+        self.published = []
+
+    def when_connected(self, callback):
+        pass
+
+    def publish(self, topic, payload, retain=False):
+        self.published.append(payload)
+
+
+def test_the_mqtt_state_tells_the_battery_as_news_not_its_age_ticking():
+    from flask_move_server.mqtt.robot_state import RobotState
+
+    robot, link, heard = BatteryRobot(), Link(), []
+    state = RobotState(link, robot, battery_heard=lambda: heard.append(True), clock=Clock())
+    assert state.tell() and not heard
+    robot.battery = {"percentage": 62.0, "voltage": 11.8, "charging": False, "age": 0.1}
+    assert state.tell() and heard == [True]  # Home Assistant's Battery sensor is due
+    for age in (1.1, 2.1, 3.1):
+        robot.battery = dict(robot.battery, age=age, percentage=62.0 - age / 10)
+        assert not state.tell(), "a robot at rest would publish its state every second"
+    robot.battery = dict(robot.battery, percentage=61.0)
+    assert state.tell() and '"percentage": 61.0' in link.published[-1]
+
+
 # the simulated battery -----------------------------------------------------------------
 
 
