@@ -61,7 +61,7 @@ class Server:
         store = WaypointStore(self.config.waypoints.file, self.config.waypoints.lock_timeout)
         self.events = EventBus()
         stack.callback(self.events.close)  # closed last of all: streams end after the robot stopped
-        robot = self._build_robot(stack)
+        robot = self._build_robot(stack, store)
         self._report(stack, robot)
         self.modes = self._build_modes(stack)
         maps = self._build_maps(stack, store)
@@ -213,7 +213,7 @@ class Server:
         stack.callback(advertiser.close)
         advertiser.start()
 
-    def _build_robot(self, stack):
+    def _build_robot(self, stack, store):
         from flask_move_server.drive import make_drive
         from flask_move_server.drive.estop import EStop
         from flask_move_server.ros.node import RosNode
@@ -230,7 +230,8 @@ class Server:
             from flask_move_server.sim.runner import Simulation
 
             # With the sim as the modes' stack, the mode manager's restore() starts the mode.
-            self._simulation = Simulation(cfg, node, drive, autostart=cfg.stack_kind() != "sim")
+            self._simulation = Simulation(cfg, node, drive, autostart=cfg.stack_kind() != "sim",
+                                          dock=lambda: dock_position(store))
             stack.callback(self._simulation.close)
         robot = build_robot(cfg, node, drive, estop)
         if self._simulation is not None:
@@ -350,8 +351,9 @@ class Server:
 
 
 def build_robot(config, node, drive, estop=None):
-    """The Robot facade over ``node``: pose tracker, navigator, teleop, ``drive``, the e-stop latch."""
+    """The Robot facade over ``node``: pose tracker, navigator, teleop, ``drive``, the e-stop latch, the battery."""
     from flask_move_server.robot import Robot
+    from flask_move_server.ros.battery import BatteryMonitor
     from flask_move_server.ros.navigator import Navigator
     from flask_move_server.ros.pose import PoseTracker
     from flask_move_server.ros.teleop import Teleop
@@ -359,7 +361,19 @@ def build_robot(config, node, drive, estop=None):
     pose = PoseTracker(config.ros.frames, config.navigation.amcl_pose_topic, node, config.navigation.pose_max_age)
     navigator = Navigator(config.navigation, config.ros.frames, node, pose)
     teleop = Teleop(config.teleop, node)
-    return Robot(node, navigator, pose, teleop, drive, estop)
+    battery = BatteryMonitor(config.battery.topic, node)
+    return Robot(node, navigator, pose, teleop, drive, estop, battery)
+
+
+def dock_position(store):
+    """(x, y) of the ``dock`` waypoint of the waypoints in use (the active map's), or None without one."""
+    from flask_move_server.errors import UnknownWaypoint
+
+    try:
+        dock = store.get("dock")
+    except UnknownWaypoint:
+        return None
+    return dock.x, dock.y
 
 
 def main(argv=None):

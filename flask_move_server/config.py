@@ -207,6 +207,7 @@ class SimConfig:
     scan_rate: float = checked(rules.non_negative, default=5.5)
     navigation_config: Optional[str] = path_field(default=None)  # None: the shipped config/ folder
     stuck_timeout: float = checked(rules.positive, default=10.0)
+    battery_start: float = checked(rules.fraction, default=0.87)  # the simulated battery's charge at start
     map_topic: str = "map"
     scan_topic: str = "scan"
     laser_frame: str = "laser"

@@ -1,7 +1,8 @@
 """In-process events: what changed in the robot, for the page's stream and for other parts.
 
 Parts publish ``(kind, data)``: ``pose``, ``status``, ``mode``, ``map``, ``waypoints``,
-``estop``, ``plan``, ``scan`` (the kinds docs/api.md lists for ``GET /events``), ``data`` a JSON-ready dict.
+``estop``, ``plan``, ``scan``, ``battery`` (the kinds docs/api.md lists for ``GET /events``),
+``data`` a JSON-ready dict.
 An event carries the new *state*, never a delta, so a reader that missed one loses nothing
 by reading the next: that is what lets every subscription keep only the newest event of each
 kind. A slow page therefore holds at most one pending event per kind, never a growing queue.

@@ -10,7 +10,12 @@ publishes, on the :class:`~flask_move_server.events.EventBus`:
   ignoring the fields that tick by themselves (teleop ``remaining``, motors ``command_age``,
   odometry) and the distance left below 5 cm;
 - ``estop`` (the ``/status`` estop dict) when the latch changed; an engage is also told at
-  once from the latch's own callback, not 100 ms later.
+  once from the latch's own callback, not 100 ms later;
+- ``battery`` (the ``/status`` battery dict) once a reading came (never while none did: a robot
+  without a fuel gauge has no battery event), then when the percentage moved 1 point or more
+  from the one told, charging changed, the voltage moved 0.1 V (only when there is no
+  percentage: a voltage monitor's robot), or the reading became ``BATTERY_OLD`` seconds old (its
+  publisher stopped); never for its ``age`` ticking.
 
 Sampling instead of hooking every part keeps the parts unaware of the bus, and costs one
 ``robot.status()`` per tick (a tf lookup and a few locks; docs/performance.md has the CPU).
@@ -30,6 +35,9 @@ RATE = 10.0  # samples a second: the page draws the robot at this rate while it 
 POSE_REFRESH = 1.0  # s: a pose at rest is told again this often, its age updated
 MOVED = 0.001  # m and rad: a smaller change of pose is not news
 DISTANCE_STEP = 0.05  # m: distance_remaining changes smaller than this are not news
+PERCENT_STEP = 1.0  # battery percentage points: a smaller change is not news
+VOLTAGE_STEP = 0.1  # V: nor this, when the battery tells no percentage
+BATTERY_OLD = 30.0  # s: a battery reading this old is told once more (the page greys it: its publisher stopped)
 
 # Fields that change on every sample without anything happening: left out of the comparison.
 _TICKING = {"teleop": ("remaining",), "motors": ("command_age", "odom")}
@@ -44,7 +52,7 @@ class Reporter:
         self._events = events
         self._period = 1.0 / rate
         self._clock = clock
-        self._last = {"pose": None, "status": None, "estop": None}
+        self._last = {"pose": None, "status": None, "estop": None, "battery": None}
         self._pose_told_at = None
         self._lock = threading.Lock()  # one sample at a time
         self._estop_lock = threading.Lock()  # the e-stop read and told in one step (thread and callback)
@@ -95,6 +103,7 @@ class Reporter:
             status = self._robot.status()
             self._tell_pose(status.get("pose"))
             self._tell_status({part: status.get(part) for part in STATUS_PARTS})
+            self._tell_battery(status.get("battery"))
         self._tell_estop()
 
     def _tell_pose(self, pose):
@@ -111,6 +120,11 @@ class Reporter:
         if key != self._last["status"]:
             self._last["status"] = key
             self._events.publish("status", status)
+
+    def _tell_battery(self, battery):
+        if battery_news(self._last["battery"], battery):
+            self._last["battery"] = battery
+            self._events.publish("battery", battery)
 
     def _tell_estop(self):
         """Read the latch and tell it if it changed, as one step: a sample's older reading can never
@@ -136,6 +150,29 @@ def pose_moved(before, after):
     if before.get("frame") != after.get("frame"):
         return True
     return any(abs(after[k] - before[k]) >= MOVED for k in ("x", "y", "yaw"))
+
+
+def battery_news(before, after):
+    """True when the battery reading ``after`` is news compared with the one told, ``before``."""
+    if before is None or after is None:
+        return before is not after
+    if before.get("charging") != after.get("charging"):
+        return True
+    if _old(before) != _old(after):
+        return True
+    return (_moved(before.get("percentage"), after.get("percentage"), PERCENT_STEP)
+            or (after.get("percentage") is None
+                and _moved(before.get("voltage"), after.get("voltage"), VOLTAGE_STEP)))
+
+
+def _old(battery):
+    return (battery.get("age") or 0.0) >= BATTERY_OLD
+
+
+def _moved(before, after, step):
+    if before is None or after is None:
+        return before is not after
+    return abs(after - before) >= step - 1e-9
 
 
 def status_key(status):

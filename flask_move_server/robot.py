@@ -18,15 +18,17 @@ SHUT_DOWN = "The server stopped while this run was under way; resume it to go on
 
 
 class Robot:
-    """One robot: navigation, teleop, pose, motors, ROS health."""
+    """One robot: navigation, teleop, pose, motors, battery, ROS health."""
 
-    def __init__(self, node, navigator, pose, teleop, drive, estop=None):
+    def __init__(self, node, navigator, pose, teleop, drive, estop=None, battery=None):
+        """``battery``: a ros/battery.py BatteryMonitor (``status()`` and ``close()``), or None."""
         self.node = node
         self.navigator = navigator
         self.pose = pose
         self.teleop_control = teleop
         self.drive = drive
         self.estop = estop if estop is not None else EStop()
+        self.battery = battery
         # A zero Twist is ramped down by the base; a deadman that runs out must stop at once.
         teleop.on_expire(drive.stop)
         self.estop.when_engaged(lambda source: self.stop(ESTOP.format(ESTOP_SOURCES.get(source, source))))
@@ -194,10 +196,15 @@ class Robot:
             "teleop": self.teleop_control.status(),
             "motors": self.drive.status(),
             "estop": self.estop.status(),
+            "battery": self.battery_status(),
             "ros": {"state": self.node.health, "master_uri": self.node.master_uri, "node": self.node.name,
                     "failed_parts": self.node.failed_parts},
             **self._simulated(),
         }
+
+    def battery_status(self):
+        """``{"percentage", "voltage", "charging", "age"}`` of the battery's last reading, or None (never heard)."""
+        return self.battery.status() if self.battery is not None else None
 
     def _simulated(self):
         """``{"sim": {"true_pose": ...}}`` with --sim: where the robot really is, beside what localization believes."""
@@ -224,3 +231,5 @@ class Robot:
         self.teleop_control.close()
         self.navigator.close()
         self.pose.close()
+        if self.battery is not None:
+            self.battery.close()

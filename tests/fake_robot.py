@@ -118,6 +118,7 @@ class FakeRobot:
                        "max_linear": 0.4, "max_angular": 1.5},
             "motors": {"backend": "none", "left": 0.0, "right": 0.0},
             "estop": self.estop.status(),
+            "battery": None,
             "ros": {"state": "connected", "master_uri": "http://fake:11311", "node": "/fake"},
         }
 

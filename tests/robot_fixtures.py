@@ -24,6 +24,7 @@ def make_config(name, tmp_path):
     cfg.navigation.simple_goal_topic = name + "/move_base_simple/goal"
     cfg.navigation.amcl_pose_topic = name + "/amcl_pose"
     cfg.teleop.topic = name + "/cmd_vel"
+    cfg.battery.topic = name + "/battery_state"
     cfg.ros.frames.map = name + "_map"
     cfg.ros.frames.base_link = name + "_base_link"
     cfg.waypoints.file = str(tmp_path / "waypoints.yaml")

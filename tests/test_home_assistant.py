@@ -104,8 +104,10 @@ def test_the_robot_appears_as_one_device_with_every_entity(sim, home, broker):
     assert config_of(home, "select", "goto")["options"] == WAYPOINTS
     assert config_of(home, "button", "stop")["payload_press"] == "PRESS"
     assert config_of(home, "binary_sensor", "estop")["device_class"] == "safety"
-    # No battery is heard on the robot's topic yet: no Battery sensor to show "unknown" for ever.
-    assert not home.last("{}/sensor/robot/battery/config".format(PREFIX))
+    # The sim's battery is heard within a second, so its sensor comes too (a robot without a fuel gauge
+    # has none, rather than one showing "unknown" for ever: test_mqtt_parts).
+    battery = config_of(home, "sensor", "battery")
+    assert battery["device_class"] == "battery" and battery["unit_of_measurement"] == "%"
 
 
 def test_the_state_says_what_the_robot_does(sim, home):
@@ -114,6 +116,8 @@ def test_the_state_says_what_the_robot_does(sim, home):
                           "battery", "refused"}
     assert state["mode"] == "navigation" and state["estop"] is False
     assert set(state["pose"]) == {"x", "y", "yaw"}
+    battery = home.wait_json(STATE, lambda s: s["battery"] is not None)["battery"]
+    assert set(battery) == {"percentage", "voltage", "charging", "age"} and 0 <= battery["percentage"] <= 100
 
 
 def test_go_to_sends_the_robot_and_stop_stops_it(sim, home):

@@ -5,7 +5,9 @@
 when something is told on the event bus (a mode, a map, waypoints, a run, an exploration, the
 e-stop, a goal's end) and publishes it when it differs from the last one told. The pose alone
 changing is told at most once a second (``POSE_PERIOD``), and never more than ``MIN_PERIOD``
-apart anything else: a busy robot costs the broker a few messages a second at most.
+apart anything else: a busy robot costs the broker a few messages a second at most. The battery
+is news as for the ``battery`` event (``reporter.battery_news``: a point of charge, charging, a
+reading grown old), never its ``age`` ticking, or a robot at rest would publish every second.
 Pure: no paho (the link publishes), no rospy (the robot facade reads).
 """
 
@@ -13,6 +15,8 @@ import json
 import logging
 import threading
 import time
+
+from flask_move_server.reporter import battery_news
 
 log = logging.getLogger(__name__)
 
@@ -77,7 +81,8 @@ class RobotState:
         pose = state.pop("pose")
         now = self._clock()
         told = self._told
-        news = told is None or state != told[0]
+        news = (told is None or _but_battery(state) != _but_battery(told[0])
+                or battery_news(told[0]["battery"], state["battery"]))
         pose_news = told is not None and pose != told[1] and now - self._pose_told_at >= POSE_PERIOD
         if not (news or pose_news):
             return False
@@ -119,6 +124,10 @@ class RobotState:
         self._wake.set()
         if self._thread is not None:
             self._thread.join(timeout=2)
+
+
+def _but_battery(state):
+    return dict(state, battery=None)
 
 
 def _status(nav, teleop, estop, run, exploring):

@@ -51,11 +51,15 @@ class Simulation:
     physics, ``/scan`` in the laser's frame and the laser's static tf, with the drive's own
     ``/odom`` and tf. No move_base, AMCL, SLAM or map_server stand-in: the shipped launch files
     start the real ones (on a PC with ROS Noetic's navigation packages), ``lidar:=false``.
+
+    In both, the robot's battery (``sim/battery.py``) publishes on ``battery.topic``; ``dock()``
+    says where the dock is (x, y), or None: the battery charges there.
     """
 
-    def __init__(self, config, node, drive, autostart=True):
+    def __init__(self, config, node, drive, autostart=True, dock=None):
         from flask_move_server.modes.simulated import SimulatedStack
         from flask_move_server.sim import costmap, laser, occupancy, planner
+        from flask_move_server.sim.battery import BatteryModel, SimBattery
         from flask_move_server.sim.body import RobotBody
         from flask_move_server.sim.move_base import MoveBaseStandIn
         from flask_move_server.sim.world import SimWorld
@@ -76,6 +80,8 @@ class Simulation:
         self.world_only = config.stack_kind() == "roslaunch"
         self.world = SimWorld(config, node, self.body, laser.Laser(grid), wheel_speeds,
                               stand_ins=not self.world_only)
+        self.battery = SimBattery(config.battery.topic, node, wheel_speeds, self.world.pose, dock or (lambda: None),
+                                  sim.speed_factor, BatteryModel(sim.battery_start))
         self.move_base = self.stacks = None
         if self.world_only:
             log.info("simulated world only: the navigation stack is the launch files' (modes.stack: roslaunch)")
@@ -90,8 +96,8 @@ class Simulation:
             self.stacks.begin("navigation", None)
 
     def close(self):
-        """Stop the mode, the stand-in, then the world. Idempotent."""
-        for part in (self.stacks, self.move_base, self.world):
+        """Stop the mode, the stand-in, the battery, then the world. Idempotent."""
+        for part in (self.stacks, self.move_base, self.battery, self.world):
             if part is not None:
                 part.close()
 

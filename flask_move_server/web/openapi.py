@@ -55,8 +55,8 @@ def build(config):
         "/waypoints": {"get": _operation("List the waypoints", None, {200: _json(_object(
             {"waypoints": {"type": "array", "items": _ref("Waypoint")}}))})},
         "/waypoints/{name}": _waypoint_item(),
-        "/status": {"get": _operation("Pose, navigation, teleop, motors, e-stop, ROS, waypoints file, MQTT", None,
-                                      {200: _json(_object({}, ["pose", "navigation", "teleop", "motors", "estop"]))})},
+        "/status": {"get": _operation("Pose, navigation, teleop, motors, e-stop, battery, ROS, waypoints file, MQTT",
+                                      None, {200: _json(_status())})},
         "/health": {"get": _open(_operation("Is the server up, ROS connected, move_base ready?", None, {
             200: _json(_object({"status": {"enum": ["ok"]}, "ros": {"type": "string"},
                                 "move_base": {"enum": ["ready", "unavailable"]}}))}))},
@@ -377,9 +377,17 @@ _PNG = {200: {"description": "a greyscale PNG, ETag = the map's version",
         304: {"description": "not modified: the If-None-Match ETag is the map's version"}}
 
 
+def _status():
+    """``GET /status``: the battery described here, the other fields in docs/api.md."""
+    schema = _object({}, ["pose", "navigation", "teleop", "motors", "estop", "battery"])
+    schema["properties"] = {"battery": {"allOf": [_ref("Battery")], "nullable": True,
+                                        "description": "null until a sensor_msgs/BatteryState was heard"}}
+    return schema
+
+
 def _events():
-    stream = {"description": "Server-Sent Events: 'event: <kind>' (pose, status, estop, plan, scan, mode, map, "
-                             "waypoints, run, explore, clock) and 'data: <one JSON object>', the latest of each "
+    stream = {"description": "Server-Sent Events: 'event: <kind>' (pose, status, estop, battery, plan, scan, mode, "
+                             "map, waypoints, run, explore, clock) and 'data: <one JSON object>', the latest of each "
                              "kind first; a clock event every 2 s. docs/api.md lists each kind's fields.",
               "content": {"text/event-stream": {"schema": {"type": "string"}}}}
     return _operation("The robot's state as it changes (Server-Sent Events)", None, {200: stream}, errors=(503,))
@@ -431,8 +439,15 @@ def _components(max_body_bytes):
     waypoint = _object(dict(pose["properties"], name={"type": "string"}), ["name", "x", "y", "yaw"])
     estop = _object({"latched": {"type": "boolean"}, "source": {"type": "string", "nullable": True},
                      "since": {"type": "string", "nullable": True}})
+    number = {"type": "number", "nullable": True}
+    battery = _object({"percentage": dict(number, minimum=0, maximum=100, description="null: unknown"),
+                       "voltage": dict(number, description="V; null: unknown"),
+                       "charging": {"type": "boolean", "nullable": True,
+                                    "description": "false when discharging, not charging or full; null: unknown"},
+                       "age": {"type": "number", "minimum": 0, "description": "s since the reading was heard"}},
+                      ["percentage", "voltage", "charging", "age"])
     return {
-        "schemas": {"Error": error, "Pose": pose, "Waypoint": waypoint, "EStop": estop},
+        "schemas": {"Error": error, "Pose": pose, "Waypoint": waypoint, "EStop": estop, "Battery": battery},
         "responses": responses,
         "securitySchemes": {"bearer": {"type": "http", "scheme": "bearer",
                                        "description": "needed when the robot has a token"}},

@@ -145,6 +145,7 @@ export class Live {
         this.emit("pose", status.pose);
         this.emit("status", status);
         if (status.estop) this.emit("estop", status.estop);
+        this.emit("battery", status.battery);
         if (round % 10 === 0) this.pollSlowly();
       } catch (e) {
         this.setState("reconnecting");

@@ -16,6 +16,7 @@ import {initWhereabouts, showWhereabouts, noMapInUse} from "./whereabouts.js";
 import {initRoutes, loadRoutes, showPastRuns} from "./routes.js";
 import {initRunStrip, loadRuns, tellRun} from "./runstrip.js";
 import {initExplore, loadExploration, tellExploration} from "./explore.js";
+import {showBattery} from "./battery.js";
 
 const $ = (id) => document.getElementById(id);
 const map = new MapView($("map"), {overlays: [$("gesture")]});
@@ -222,6 +223,7 @@ function resync() {
     showStaleNote();
     showStatus(s);
     if (s.estop) showEstop(s.estop);
+    showBattery(s.battery);
   }));
   api("GET", "/mode").then(showModes, (e) => { if (e.status === 404) $("mode").textContent = "robot"; });
   quietly(loadWaypoints());
@@ -238,6 +240,7 @@ live.on("pose", (p) => { map.setPose(p); showStaleNote(); });
 setInterval(showStaleNote, 500);  // a pose that stops coming greys the robot without any event
 live.on("status", showStatus);
 live.on("estop", showEstop);
+live.on("battery", showBattery);
 live.on("plan", (p) => map.setPlan(p.poses));
 live.on("waypoints", () => { quietly(loadWaypoints()); quietly(loadRoutes()); });  // routes live in the waypoints file
 live.on("run", (run) => {
@@ -286,6 +289,7 @@ for (const tab of document.querySelectorAll("#tabs button")) {
   };
 }
 $("mode").onclick = () => flashHint($("mode").title || "");
+$("battery").onclick = () => flashHint($("battery").title);
 $("nav-text").onclick = () => flashHint($("nav-text").title || "");  // the goal line whole, when cut short  // a phone has no hover: tap the mode for its message
 $("token").onclick = () => askTokenAgain().then(() => resync());
 initPanels({call, report, setGesture, isLive});
