@@ -20,8 +20,8 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
 
 # Modules that drive a simulated robot, a browser or a roslaunch stack in real time. Under
-# `make test`'s two pytest-xdist workers (Makefile XDIST) the browser's modules run one after the
-# other in one lane and the other real-time modules in another, so at most two of them share the two
+# `make test`'s two pytest-xdist workers (Makefile XDIST) the browser's modules (and the sim's
+# explorations) run one after the other in one lane and the other real-time modules in another, so at most two of them share the two
 # cores at a time; every other module stays whole on one worker (its module fixtures' state intact),
 # each worker taking the next as it frees up.
 REALTIME = ("sim", "modes_robot", "stack_launched", "launch", "motion_stop", "stop_path",
@@ -32,7 +32,7 @@ REALTIME = ("sim", "modes_robot", "stack_launched", "launch", "motion_stop", "st
 def pytest_collection_modifyitems(config, items):
     for item in items:
         module = os.path.basename(str(item.fspath))[len("test_"):-len(".py")]
-        if module.startswith("page"):
+        if module.startswith("page") or module == "explore_sim":  # the explorations: the lanes' time evened out
             lane = "browser"
         elif any(part in module for part in REALTIME):
             lane = "realtime"

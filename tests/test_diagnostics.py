@@ -219,7 +219,10 @@ def test_robotctl_doctor_prints_each_line_and_exits_1_on_a_failure(robot_config,
     out = capsys.readouterr().out
     assert status == 1  # no move_base here
     assert "PASS  scan " in out and "FAIL  move_base" in out and "-> Is navigation running" in out
-    assert out.rstrip().endswith("FAIL: 1 failed, 0 warnings")
+    # The summary counts the lines above it. This machine's own checks (its load, its disk) may warn
+    # while other tests run beside this one: the count is checked against the lines, not fixed at 0.
+    warnings = sum(1 for line in out.splitlines() if line.startswith("WARN"))
+    assert out.rstrip().endswith("FAIL: 1 failed, {} warning{}".format(warnings, "" if warnings == 1 else "s"))
 
 
 # --- the Pi's own checks, on files laid out as a Pi has them -----------------------------------

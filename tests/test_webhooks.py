@@ -268,7 +268,8 @@ def test_a_full_queue_drops_the_newest_and_counts_with_one_warning(receivers, ca
             teller.tell("estop", {"n": n})  # 1, 2 queued; 3, 4, 5 dropped
         assert sent.status() == {"sent": 0, "failed": 0, "dropped": 3, "queued": 2}
     drops = [r for r in caplog.records if "dropped" in r.getMessage() and r.levelname == "WARNING"]
-    assert len(drops) == 1 and "3 dropped" not in drops[0].getMessage()  # told once, not per drop
+    # Told once, with the count so far, not once per drop (the URL in it may hold any digits: its port).
+    assert len(drops) == 1 and drops[0].getMessage().endswith(", 1 dropped so far")
     assert any("2 not sent" in r.getMessage() for r in caplog.records)
 
 
@@ -289,7 +290,7 @@ def test_a_hanging_receiver_delays_neither_the_robot_nor_close(robot_config, rea
             wait_for(lambda: ready_robot.navigator.status()["state"] == "succeeded", message="arrived")
         started = time.monotonic()
         assert client.post("/stop", headers=auth).status_code == 200
-        assert time.monotonic() - started < 0.5
+        assert time.monotonic() - started < 2.0  # a stop that waited for a POST would take the 1 s timeout x 3
         # One worker: the other receiver gets its POSTs once each hanging try has timed out.
         wait_for(lambda: len(other.requests) >= 1, timeout=8, message="the other webhook's POST")
     finally:

@@ -46,8 +46,8 @@ def describe(report):
         if check.get("advice") and check["level"] != "pass":
             lines.append("      {}  -> {}".format(" " * width, check["advice"]))
     counts = {level: sum(c["level"] == level for c in report["checks"]) for level in ("fail", "warn")}
-    lines.append("{}: {} failed, {} warnings{}".format(
-        report["status"].upper(), counts["fail"], counts["warn"],
+    lines.append("{}: {} failed, {} warning{}{}".format(
+        report["status"].upper(), counts["fail"], counts["warn"], "" if counts["warn"] == 1 else "s",
         "" if report["status"] == "fail" else " (fix warnings when you can)" if counts["warn"] else ""))
     return lines
 

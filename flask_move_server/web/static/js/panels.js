@@ -59,7 +59,8 @@ function mapRow(m, active) {
   li.dataset.source = configured ? "configured" : "saved";
   const img = document.createElement("img");
   img.alt = "";
-  thumbnail(m).then((url) => { if (url) img.src = url; });
+  // No picture when the robot went away meanwhile: the list is drawn again once it is back.
+  thumbnail(m).then((url) => { if (url) img.src = url; }, () => {});
   const about = document.createElement("div");
   about.className = "about";
   const name = document.createElement("span");
