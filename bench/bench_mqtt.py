@@ -18,14 +18,15 @@ integration is) that publishes commands as it does (QoS 0, not retained).
    {"name"}`` on one keep-alive connection for reference. ``--commands`` each, ``--spacing`` s
    apart, two of a way then two of the next in turns, the waypoint alternating so each is a new
    goal (it preempts the last).
-2. **CPU at rest**: two servers side by side over the same windows (the machine's load falls on
-   both alike), the same config but ``mqtt.enabled``: one connected to the broker, Home Assistant's
-   discovery on, the client here subscribed to ``#``; the other with MQTT off. User + system CPU
-   from ``/proc/<pid>/stat`` over ``--cpu-seconds``, ``--cpu-repeat`` windows after ``--settle``
-   s, mosquitto's too, and the messages the robot published meanwhile. The sim's world alone costs
-   ~5 % ± 0.5 of a core, more than the difference looked for; so, with py-spy installed (``pip
-   install py-spy``), the MQTT threads' own CPU too: named by ``py-spy dump``, timed in ns from
-   ``/proc/<pid>/task/<tid>/schedstat``.
+2. **CPU at rest**: three servers side by side over the same windows (the machine's load falls on
+   all alike), the same config but ``mqtt.enabled``: one connected to the broker, Home Assistant's
+   discovery on, the client here subscribed to ``#``; two with MQTT off, the second to show how far
+   two identical servers differ. User + system CPU from ``/proc/<pid>/stat`` over
+   ``--cpu-seconds``, ``--cpu-repeat`` windows after ``--settle`` s, mosquitto's too, and the
+   messages the robot published meanwhile. Two identical ``--sim`` servers differ by up to ~0.7 %
+   of a core, which persists from window to window (the sim's own threads), more than the 0.2 %
+   looked for; so, with py-spy installed (``pip install py-spy``), the MQTT threads' own CPU too:
+   named by ``py-spy dump``, timed in ns from ``/proc/<pid>/task/<tid>/schedstat``.
 3. **/stop in a command flood**: ``--flood`` goto commands in ``--flood-seconds`` over MQTT (the
    waypoint alternating) while a process of its own POSTs ``/stop`` every ``--stop-every`` s on one
    keep-alive connection; against the same with no flood, and with a flood of commands the server
@@ -242,25 +243,25 @@ def published(home):
         return sum(1 for m in home.messages if m[1].startswith((ROOT_TOPIC + "/", "homeassistant/")))
 
 
-def idle_cpu(on, off, broker, home, seconds, repeat):
-    """Per window: (% of a core of the MQTT-on server, of the MQTT-off one, of mosquitto, of the MQTT
-    threads or None, messages the server published per second)."""
-    tids = mqtt_tids(on.proc.pid)
+def idle_cpu(servers, broker, home, seconds, repeat):
+    """Per window: each server's CPU and mosquitto's (% of one core), the MQTT-on server's (the
+    first) MQTT threads' ({name: %}, empty without py-spy), and the messages it published per s."""
+    tids = mqtt_tids(servers[0].proc.pid)
     windows = []
     for _ in range(repeat):
-        procs = (on.proc.pid, off.proc.pid, broker.proc.pid)
+        procs = [s.proc.pid for s in servers] + [broker.proc.pid]
         before = [cpu_seconds(p) for p in procs]
-        threads0 = thread_cpu(on.proc.pid)
+        threads0 = thread_cpu(servers[0].proc.pid)
         published0 = published(home)
         started = time.monotonic()
         time.sleep(seconds)
         passed = time.monotonic() - started
         shares = [100.0 * (cpu_seconds(p) - b) / passed for p, b in zip(procs, before)]
-        threads1 = thread_cpu(on.proc.pid)
-        mqtt = (100.0 * sum(threads1.get(t, 0) - threads0.get(t, 0) for t in tids if t in threads0) / passed
-                if tids else None)
-        windows.append(shares + [mqtt, (published(home) - published0) / passed])
-    return windows, sorted(set(tids.values()))
+        threads1 = thread_cpu(servers[0].proc.pid)
+        mqtt = {name: 100.0 * (threads1.get(tid, 0.0) - threads0[tid]) / passed
+                for tid, name in tids.items() if tid in threads0}
+        windows.append((shares, mqtt, (published(home) - published0) / passed))
+    return windows
 
 
 # 3. /stop in a flood ----------------------------------------------------------------------------
@@ -341,20 +342,24 @@ def print_latency(trips, answers, spacing):
             label, len(t), percentile(t, 50), percentile(t, 90), percentile(t, 99), max(t)))
 
 
-def print_cpu(windows, names, seconds):
-    print("| at rest, CPU over {:.0f} s (% of one core) | MQTT off | MQTT on | difference | of which MQTT threads "
-          "| mosquitto | messages/s published |".format(seconds))
-    print("|---|---:|---:|---:|---:|---:|---:|")
-    for i, (on, off, broker, mqtt, rate) in enumerate(windows):
-        print("| window {} | {:.2f} | {:.2f} | {:+.2f} | {} | {:.2f} | {:.2f} |".format(
-            i + 1, off, on, on - off, "–" if mqtt is None else "{:.3f}".format(mqtt), broker, rate))
-    mean = [statistics.mean(w[k] for w in windows) for k in range(3)]
-    mqtt = [w[3] for w in windows if w[3] is not None]
-    print("| mean | {:.2f} | {:.2f} | {:+.2f} | {} | {:.2f} | {:.2f} |".format(
-        mean[1], mean[0], mean[0] - mean[1], "{:.3f}".format(statistics.mean(mqtt)) if mqtt else "–", mean[2],
-        statistics.mean(w[4] for w in windows)))
-    if names:
-        print("\n(MQTT threads: {})".format(", ".join(names)))
+def print_cpu(windows, seconds):
+    print("| at rest, CPU over {:.0f} s (% of one core) | MQTT on | MQTT off | MQTT off, a second server | on − off "
+          "| off − off (identical) | MQTT threads: mqtt-state | the other MQTT threads | mosquitto "
+          "| messages/s published |".format(seconds))
+    print("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
+    rows = [("window {}".format(i + 1), w) for i, w in enumerate(windows)]
+    if len(windows) > 1:
+        mean = ([statistics.mean(w[0][k] for w in windows) for k in range(4)],
+                {name: statistics.mean(w[1].get(name, 0.0) for w in windows) for name in windows[0][1]},
+                statistics.mean(w[2] for w in windows))
+        rows.append(("mean", mean))
+    for label, (shares, mqtt, rate) in rows:
+        on, off, off2, broker = shares
+        state = mqtt.get("mqtt-state")
+        others = sum(v for name, v in mqtt.items() if name != "mqtt-state")
+        print("| {} | {:.2f} | {:.2f} | {:.2f} | {:+.2f} | {:+.2f} | {} | {} | {:.2f} | {:.2f} |".format(
+            label, on, off, off2, on - off, off2 - off, "–" if state is None else "{:.3f}".format(state),
+            "{:.3f}".format(others) if mqtt else "–", broker, rate))
 
 
 def print_stops(rows, count, seconds, every):
@@ -421,10 +426,9 @@ def main(argv=None):
             watch = None
             stop_process(sims.pop().proc)
         if "cpu" not in skip:
-            sims.append(Sim(home_dir / "on", broker))
-            sims.append(Sim(home_dir / "off"))
+            sims += [Sim(home_dir / "on", broker), Sim(home_dir / "off"), Sim(home_dir / "off2")]
             time.sleep(opts.settle)
-            cpu = idle_cpu(sims[0], sims[1], broker, home, opts.cpu_seconds, opts.cpu_repeat)
+            cpu = idle_cpu(sims, broker, home, opts.cpu_seconds, opts.cpu_repeat)
     finally:
         if watch is not None:
             watch.close()
@@ -441,7 +445,7 @@ def main(argv=None):
         print_latency(*latency, opts.spacing)
         print()
     if cpu:
-        print_cpu(*cpu, opts.cpu_seconds)
+        print_cpu(cpu, opts.cpu_seconds)
         print()
     if stops:
         print_stops(stops, opts.flood, opts.flood_seconds, opts.stop_every)
