@@ -33,6 +33,8 @@ BENCHMARKS = [
     ("drive_gaps", "bench_drive_gaps.py", ["--seconds", "3"]),
     ("sim_modes", "bench_sim_modes.py", ["--switches", "2", "--drive-seconds", "30"]),
     ("events", "bench_events.py", ["--rest-seconds", "3", "--drive-seconds", "5", "--stops", "3"]),
+    ("mqtt", "bench_mqtt.py", ["--commands", "30", "--settle", "5", "--cpu-seconds", "10", "--cpu-repeat", "1",
+                               "--floods", "2"]),
     ("page", "bench_page.py", ["--loads", "3"]),
     ("page_silence", "bench_page_silence.py", ["--stalls", "2"]),
     ("scan", "bench_scan.py", ["--seconds", "4", "--repeat", "500"]),

@@ -12,6 +12,7 @@ import logging
 
 from flask_move_server.errors import MoveServerError, RunConflict
 from flask_move_server.geometry import Goal, Pose2D
+from flask_move_server.log_limits import Throttled
 
 log = logging.getLogger(__name__)
 
@@ -19,6 +20,7 @@ SET, PRESS = "set", "press"
 DOCK = "dock"
 STOPPED = "Stopped from Home Assistant (MQTT)."
 GOAL_FROM_MQTT = "A goal to {} (MQTT) took the robot elsewhere."
+LINES_BURST = 20  # command lines logged per 10 s (as the navigator's goal lines); the rest of a flood is counted
 MAX_NAME = 256  # characters of a waypoint or route name taken (a name is at most 64; more is refused by its check)
 
 
@@ -31,6 +33,7 @@ class Commands:
         self._changed = changed  # the state topic tells the refusal (or its end)
         self._clock = clock or _utc_now
         self.refused = None
+        self._lines = Throttled(log, "MQTT command lines", burst=LINES_BURST)  # a flood: not ~1000 lines/s
         self.topics = {}
         for name, kind, act in (("goto", SET, self.goto), ("route", SET, self.route), ("stop", PRESS, self.stop),
                                 ("dock", PRESS, self.dock), ("pause", PRESS, self.pause),
@@ -55,7 +58,7 @@ class Commands:
         waypoint = self._store.get(name[:MAX_NAME])  # UnknownWaypoint, with close names
         target = Goal(Pose2D(waypoint.x, waypoint.y, waypoint.yaw), waypoint.name)
         seq = self._robot.goto(target)
-        log.info("MQTT: goal %d to %s", seq, waypoint.name)
+        self._lines.info("MQTT: goal %d to %s", seq, waypoint.name)
 
     def dock(self, _payload):
         self.goto(DOCK)
@@ -63,7 +66,7 @@ class Commands:
     def route(self, name):
         route = self._store.get_route(name[:MAX_NAME])
         run = self._runs.start(route, "mqtt")
-        log.info("MQTT: run %d of %s", run["id"], route.name)
+        self._lines.info("MQTT: run %d of %s", run["id"], route.name)
 
     def stop(self, _payload):
         self._robot.stop(STOPPED)
@@ -89,7 +92,7 @@ class Commands:
     # the refusal shown in Home Assistant -------------------------------------
 
     def _refuse(self, name, message):
-        log.info("MQTT: %s refused: %s", name, message)
+        self._lines.info("MQTT: %s refused: %s", name, message)
         self.refused = {"command": name, "message": message, "at": self._clock()}
         self._changed()
 
