@@ -21,9 +21,9 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
 # Modules that drive a simulated robot, a browser or a roslaunch stack in real time. Under
 # `make test`'s two pytest-xdist workers (Makefile XDIST) the browser's modules (and the sim's
-# explorations) run one after the other in one lane and the other real-time modules in another, so at most two of them share the two
-# cores at a time; every other module stays whole on one worker (its module fixtures' state intact),
-# each worker taking the next as it frees up.
+# explorations) run one after the other in one lane and the other real-time modules in another, so
+# at most two of them share the two cores at a time; every other module stays whole on one worker
+# (its module fixtures' state intact), each worker taking the next as it frees up.
 REALTIME = ("sim", "modes_robot", "stack_launched", "launch", "motion_stop", "stop_path",
             "phantom_goals", "mdns_lan", "server_process", "estop", "home_assistant", "mqtt_resilience")
 
