@@ -10,7 +10,7 @@ PYTEST_ARGS ?=
 # Two workers (pytest-xdist): the browser's modules in one lane, the other real-time modules (sims,
 # roslaunch stacks, brokers) in another, every other module whole on whichever worker is free
 # (tests/conftest.py). `make test XDIST=` runs in one process.
-XDIST ?= -n 2 --dist loadgroup
+XDIST ?= -n 2 --dist loadscope
 
 # ROS 1 from Debian (on Ubuntu 20.04 + Noetic these come from /opt/ros/noetic instead), and numpy
 # (the explorer's frontier search: Debian's and Raspberry Pi OS's python3-numpy).

@@ -20,25 +20,38 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
 
 # Modules that drive a simulated robot, a browser or a roslaunch stack in real time. Under
-# `make test`'s two pytest-xdist workers (Makefile XDIST) the browser's modules (and the sim's
-# explorations) run one after the other in one lane and the other real-time modules in another, so
-# at most two of them share the two cores at a time; every other module stays whole on one worker
-# (its module fixtures' state intact), each worker taking the next as it frees up.
+# `make test`'s two pytest-xdist workers (Makefile XDIST: `-n 2 --dist loadscope`) the browser's
+# modules (and the sim's explorations) run one after the other in one lane and the other real-time
+# modules in another, so at most two of them share the two cores at a time; every other module is a
+# unit of its own, whole on one worker (its module fixtures' state intact), each worker taking the
+# next as it frees up. (xdist's own `loadgroup` marks are not honoured with pytest 9: a module's
+# tests were spread over both workers and lost their shared state.)
 REALTIME = ("sim", "modes_robot", "stack_launched", "launch", "motion_stop", "stop_path",
             "phantom_goals", "mdns_lan", "server_process", "estop", "home_assistant", "mqtt_resilience")
 
 
-@pytest.hookimpl(tryfirst=True)
-def pytest_collection_modifyitems(config, items):
-    for item in items:
-        module = os.path.basename(str(item.fspath))[len("test_"):-len(".py")]
-        if module.startswith("page") or module == "explore_sim":  # the explorations: the lanes' time evened out
-            lane = "browser"
-        elif any(part in module for part in REALTIME):
-            lane = "realtime"
-        else:
-            lane = module
-        item.add_marker(pytest.mark.xdist_group(lane))
+def lane_of(path):
+    """The unit of work a test file belongs to under xdist: ``browser``, ``realtime``, or the file itself."""
+    module = os.path.basename(path)[len("test_"):-len(".py")]
+    if module.startswith("page") or module == "explore_sim":  # the explorations: the lanes' time evened out
+        return "browser"
+    if any(part in module for part in REALTIME):
+        return "realtime"
+    return path
+
+
+@pytest.hookimpl(optionalhook=True)
+def pytest_xdist_make_scheduler(config, log):
+    """``--dist loadscope`` with the lanes above as its scopes."""
+    if config.getvalue("dist") != "loadscope":
+        return None
+    from xdist.scheduler import LoadScopeScheduling
+
+    class Lanes(LoadScopeScheduling):
+        def _split_scope(self, nodeid):
+            return lane_of(nodeid.split("::", 1)[0])
+
+    return Lanes(config, log)
 
 
 def pytest_report_header(config):
