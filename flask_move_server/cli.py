@@ -162,7 +162,7 @@ class Server:
         stack.callback(link.close)  # closed after the parts publishing on it: "offline" is the last word
         url = "http://{}.local:{}/".format(name, self.port)
         home = HomeAssistant(link, cfg.mqtt.home_assistant, name, device_info(name, cfg.mdns.instance or name, url),
-                             store, self.robot, self.events)
+                             store, self.events)
         commands = Commands(link, self.robot, store, self.runs, changed=lambda: state.changed())
         happenings = self.happenings
         state = RobotState(link, self.robot, self.modes, self.runs, self.explorer, self.events,

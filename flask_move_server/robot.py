@@ -38,9 +38,10 @@ class Robot:
         self.goal_gate = None  # modes/goal_gate.py, when this server runs the navigation stack
         self.ground_truth = None  # with --sim: the simulated robot's true pose (a callable), shown in /status
 
-    def goto(self, goal):
-        """Send the robot to ``goal``; returns the goal's sequence number. Ends a run under way."""
-        return self._send(goal, "A goal to {} (POST /goto) took the robot elsewhere.".format(goal.target or "a pose"))
+    def goto(self, goal, via="POST /goto"):
+        """Send the robot to ``goal``; returns the goal's sequence number. Ends a run under way, saying
+        the goal came ``via`` (the API, Home Assistant)."""
+        return self._send(goal, "A goal to {} ({}) took the robot elsewhere.".format(goal.target or "a pose", via))
 
     def run_goto(self, goal):
         """A run's goal: as :meth:`goto`, but part of the run (it ends none), and never waiting for move_base."""

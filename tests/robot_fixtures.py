@@ -9,6 +9,7 @@ import threading
 import pytest
 
 from flask_move_server import cli, config
+from flask_move_server.events import EventBus
 from flask_move_server.waypoints.store import WaypointStore
 from flask_move_server.web import create_app
 from tests.conftest import wait_for
@@ -37,6 +38,14 @@ def no_drive():
     from flask_move_server.drive import NoDrive
 
     return NoDrive()
+
+
+@pytest.fixture
+def bus():
+    """An in-process event bus, closed after the test."""
+    events = EventBus()
+    yield events
+    events.close()
 
 
 @pytest.fixture

@@ -15,7 +15,6 @@ import pytest
 import requests
 
 from flask_move_server.errors import TooManyStreams
-from flask_move_server.events import EventBus
 from flask_move_server.http.connection import STREAM_BACKLOG
 from flask_move_server.web import create_app
 from flask_move_server.web.events import StreamGate
@@ -27,13 +26,6 @@ from tests.sse import EventReader
 ROBOT_STATE = ("pose", "status", "estop", "mode")  # the clock events come too; most tests skip them
 
 TOKEN = "stream-test-token"
-
-
-@pytest.fixture
-def bus():
-    bus = EventBus()
-    yield bus
-    bus.close()
 
 
 @contextlib.contextmanager

@@ -10,7 +10,6 @@ import time
 import pytest
 
 from flask_move_server.errors import ExploreConflict, ModesOff, ModeSwitching
-from flask_move_server.events import EventBus
 from flask_move_server.web import create_app
 from tests.conftest import hardened
 from tests.fake_explorer import FakeExplorer
@@ -20,13 +19,6 @@ from tests.sse import EventReader
 TOKEN = "explore-token"
 EXP_FIELDS = {"state", "frontiers", "known_m2", "goals", "unreachable", "elapsed", "map", "message", "save_as", "then",
               "max_minutes", "return_home", "started", "target"}
-
-
-@pytest.fixture
-def bus():
-    bus = EventBus()
-    yield bus
-    bus.close()
 
 
 @pytest.fixture

@@ -9,7 +9,6 @@ import time
 
 import pytest
 
-from flask_move_server.events import EventBus
 from flask_move_server.geometry import Goal, Pose2D
 from flask_move_server.happenings import Happenings
 from flask_move_server.missions.executor import RunExecutor
@@ -42,13 +41,6 @@ class Heard:
     def of(self, name):
         with self._lock:
             return [data for n, data, _ in self.items if n == name]
-
-
-@pytest.fixture
-def bus():
-    events = EventBus()
-    yield events
-    events.close()
 
 
 @pytest.fixture

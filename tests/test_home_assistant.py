@@ -8,13 +8,13 @@ under ``make test``, Debian's 1.6 under ``make test-debian``.
 """
 
 import json
-import shutil
 
 import pytest
 import requests
 
-from tests.conftest import ROOT, ServerProcess, free_port, stop_process, wait_for
+from tests.conftest import stop_process, wait_for
 from tests.mqtt_broker import Broker, Listener, retained_on
+from tests.test_sim_e2e import SimServer
 
 WAYPOINTS = ["kitchen", "office", "bedroom", "sofa", "dock"]  # config/waypoints.demo.yaml, in file order
 ROOT_TOPIC = "flask-move-server/robot"
@@ -30,26 +30,17 @@ ENTITIES = {  # (component, object) -> name, as Home Assistant shows them
 }
 
 
-class MqttSim(ServerProcess):
+class MqttSim(SimServer):
     """``flask-move-server --sim`` with MQTT on, talking to ``broker``."""
 
     def __init__(self, tmp_path, broker, extra=""):
         tmp_path.mkdir(parents=True, exist_ok=True)
-        waypoints = tmp_path / "waypoints.yaml"
-        shutil.copy(str(ROOT) + "/config/waypoints.demo.yaml", str(waypoints))
-        config = tmp_path / "sim.yaml"
-        config.write_text("sim:\n  speed_factor: 4.0\nmqtt:\n  enabled: true\n  host: 127.0.0.1\n"
-                          "  port: {}\n  keepalive: 5\n{}".format(broker.port, extra))
-        env = {"ROS_MASTER_URI": "http://127.0.0.1:{}".format(free_port()), "ROS_HOME": str(tmp_path),
-               "ROS_LOG_DIR": str(tmp_path / "log"), "ROS_IP": "127.0.0.1"}
-        super().__init__("--sim", "--config", str(config), "--port", "0", "--no-mdns",
-                         "--waypoints", str(waypoints), env=env, start_timeout=60)
+        super().__init__(tmp_path, sim_config="mqtt:\n  enabled: true\n  host: 127.0.0.1\n  port: {}\n"
+                                              "  keepalive: 5\n{}".format(broker.port, extra))
         self.port = int(self.url.rsplit(":", 1)[1])
-        wait_for(lambda: self.get("/health").json().get("move_base") == "ready", timeout=30,
-                 message="move_base stand-in ready")
 
     def navigation(self):
-        return self.get("/status").json()["navigation"]
+        return self.status()["navigation"]
 
 
 @pytest.fixture(scope="module")
@@ -188,6 +179,17 @@ def test_a_route_from_home_assistant_is_a_run(sim, home):
     home.wait_json(STATE, lambda s: s["status"] == "paused")
     home.send(ROOT_TOPIC + "/stop/press", "PRESS")
     wait_for(lambda: sim.get("/runs").json()["runs"][0]["state"] == "canceled", message="the run ended by Stop")
+
+
+def test_a_goal_from_home_assistant_ends_a_run_and_the_run_says_who_sent_it(sim, home):
+    home.send(ROOT_TOPIC + "/route/set", "rounds")
+    run = home.wait_json(STATE, lambda s: (s["run"] or {}).get("state") == "running")["run"]
+    home.send(ROOT_TOPIC + "/goto/set", "sofa")
+    wait_for(lambda: sim.get("/runs/{}".format(run["id"])).json()["state"] == "canceled", message="the run ended")
+    ended = sim.get("/runs/{}".format(run["id"])).json()
+    assert ended["message"] == "A goal to sofa (MQTT goto/set) took the robot elsewhere."
+    wait_for(lambda: sim.navigation()["target"] == "sofa", message="the goal that ended it under way")
+    home.send(ROOT_TOPIC + "/stop/press", "PRESS")
 
 
 def test_home_assistant_s_restart_brings_the_discovery_back(sim, home):

@@ -125,13 +125,6 @@ def hook(url, *events):
 
 
 @pytest.fixture
-def bus():
-    events = EventBus()
-    yield events
-    events.close()
-
-
-@pytest.fixture
 def happenings(ready_robot, bus):
     told = Happenings(ready_robot, bus)
     yield told

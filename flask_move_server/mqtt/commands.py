@@ -19,7 +19,7 @@ log = logging.getLogger(__name__)
 SET, PRESS = "set", "press"
 DOCK = "dock"
 STOPPED = "Stopped from Home Assistant (MQTT)."
-GOAL_FROM_MQTT = "A goal to {} (MQTT) took the robot elsewhere."
+VIA = "MQTT {}"  # who sent a goal that ended a run, as the run's end says: "MQTT goto/set"
 LINES_BURST = 20  # command lines logged per 10 s (as the navigator's goal lines); the rest of a flood is counted
 MAX_NAME = 256  # characters of a waypoint or route name taken (a name is at most 64; more is refused by its check)
 
@@ -34,13 +34,10 @@ class Commands:
         self._clock = clock or _utc_now
         self.refused = None
         self._lines = Throttled(log, "MQTT command lines", burst=LINES_BURST)  # a flood: not ~1000 lines/s
-        self.topics = {}
         for name, kind, act in (("goto", SET, self.goto), ("route", SET, self.route), ("stop", PRESS, self.stop),
                                 ("dock", PRESS, self.dock), ("pause", PRESS, self.pause),
                                 ("resume", PRESS, self.resume), ("estop", PRESS, self.estop)):
-            topic = "{}/{}/{}".format(link.root, name, kind)
-            self.topics[name] = topic
-            link.handle(topic, self._guarded(name, act))
+            link.handle("{}/{}/{}".format(link.root, name, kind), self._guarded(name, act))
 
     def _guarded(self, name, act):
         def command(payload):
@@ -54,14 +51,14 @@ class Commands:
 
     # the commands ------------------------------------------------------------
 
-    def goto(self, name):
+    def goto(self, name, topic="goto/set"):
         waypoint = self._store.get(name[:MAX_NAME])  # UnknownWaypoint, with close names
         target = Goal(Pose2D(waypoint.x, waypoint.y, waypoint.yaw), waypoint.name)
-        seq = self._robot.goto(target)
+        seq = self._robot.goto(target, via=VIA.format(topic))
         self._lines.info("MQTT: goal %d to %s", seq, waypoint.name)
 
     def dock(self, _payload):
-        self.goto(DOCK)
+        self.goto(DOCK, "dock/press")
 
     def route(self, name):
         route = self._store.get_route(name[:MAX_NAME])

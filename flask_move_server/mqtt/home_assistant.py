@@ -86,9 +86,10 @@ def device_info(robot, name, configuration_url):
 class HomeAssistant:
     """Publishes the discovery configs on ``link`` when they are due (see the module's docstring)."""
 
-    def __init__(self, link, config, robot_name, device, store, robot, events=None):
+    def __init__(self, link, config, robot_name, device, store, events=None):
         self._link, self._config, self._robot_name, self._device = link, config, robot_name, device
-        self._store, self._robot = store, robot
+        self._store = store
+        self._battery_known = False  # told by the state topic (battery_heard), never read off the robot here
         self.status_topic = config.discovery_prefix + "/status"
         self._told = {}  # config topic -> payload last published
         self._wake = threading.Event()
@@ -111,7 +112,8 @@ class HomeAssistant:
         self._wake.set()
 
     def battery_heard(self):
-        """The state has a battery now: its sensor is due (cheap when it already was)."""
+        """The state has a battery now: its sensor is due."""
+        self._battery_known = True
         self._wake.set()
 
     def _home_assistant_said(self, payload):
@@ -144,9 +146,8 @@ class HomeAssistant:
     def configs(self):
         waypoints = [wp.name for wp in self._store.all()]
         routes = [route.name for route in self._store.routes()]
-        battery_known = self._robot.status().get("battery") is not None
         return discovery(self._config.discovery_prefix, self._link.root, self._robot_name, self._device,
-                         waypoints, routes, battery_known, enabled=self._config.enabled)
+                         waypoints, routes, self._battery_known, enabled=self._config.enabled)
 
     def close(self):
         self._stop.set()
