@@ -54,7 +54,8 @@ def test_driving_with_the_joystick_is_not_called_cancelled(server, page):
 def test_an_arrival_is_not_told_on_the_next_map(server, page):
     sim = server["sim"]
     at_rest(sim)
-    assert sim.post("/goto", {"name": "sofa", "wait": 60}, timeout=70).status_code == 200
+    r = sim.post("/goto", {"name": "sofa", "wait": 60}, timeout=70)
+    assert r.status_code == 200, r.text
     page.wait_for_function("document.getElementById('nav-text').textContent === 'arrived at sofa'", timeout=5000)
     assert sim.post("/mode", {"mode": "mapping", "wait": 60}, timeout=70).status_code == 200
     page.wait_for_function("document.getElementById('mode').dataset.mode === 'mapping'", timeout=10000)
