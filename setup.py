@@ -49,7 +49,10 @@ setup(
                  "schemathesis>=3.27,<5",
                  # The phone page's browser tests (tests/test_page_*.py) drive Debian's chromium with it;
                  # the pip package brings its driver, never a browser (`playwright install` is not run).
-                 "playwright>=1.40"],
+                 "playwright>=1.40",
+                 # The VDA 5050 tests check every message against the standard's JSON schemas, as this package
+                 # bundles them (2.1.0, which 2.0.0 messages meet); it needs Python 3.10+.
+                 "vda5050-sdk==0.2.0; python_version >= '3.10'"],
         "pi": ["RPi.GPIO>=0.7; platform_machine in 'armv7l aarch64'"],
     },
     entry_points={

@@ -161,8 +161,9 @@ class Server:
         link = MqttLink(cfg.mqtt, name)
         stack.callback(link.close)  # closed after the parts publishing on it: "offline" is the last word
         url = "http://{}.local:{}/".format(name, self.port)
+        vehicle = self._build_vda5050(stack, link, store) if cfg.mqtt.vda5050.enabled else None
         home = HomeAssistant(link, cfg.mqtt.home_assistant, name, device_info(name, cfg.mdns.instance or name, url),
-                             store, self.events)
+                             store, self.events, vda_connection=vehicle.topic("connection") if vehicle else None)
         commands = Commands(link, self.robot, store, self.runs, changed=lambda: state.changed())
         happenings = self.happenings
         state = RobotState(link, self.robot, self.modes, self.runs, self.explorer, self.events,
@@ -173,6 +174,22 @@ class Server:
             stack.callback(part.start().close)
         app.extensions["flask_move_server"]["mqtt"] = link
         return link.start()
+
+    def _build_vda5050(self, stack, link, store):
+        """The robot as a VDA 5050 vehicle on ``link`` (docs/fleet.md): orders run on the run executor."""
+        from flask_move_server.sim.dwa import load as planner_limits
+        from flask_move_server.sim.runner import default_map, default_navigation_config
+        from flask_move_server.vda5050 import messages
+        from flask_move_server.vda5050.vehicle import Vehicle
+
+        cfg = self.config
+        folder = cfg.sim.navigation_config or default_navigation_config()
+        factsheet = messages.factsheet(cfg.mdns.hostname, planner_limits(folder), messages.read_footprint(folder))
+        own_map = os.path.splitext(os.path.basename(cfg.sim.map or default_map()))[0] if cfg.sim.enabled else "default"
+        vehicle = Vehicle(link, cfg.mqtt.vda5050, cfg.mdns.hostname, self.robot, self.runs, store, self.modes,
+                          factsheet, own_map=own_map)
+        stack.callback(vehicle.start().close)
+        return vehicle
 
     def _build_doctor(self, robot):
         """The first-boot doctor: ROS as the server's node sees it, and this machine."""

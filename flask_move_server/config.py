@@ -269,6 +269,7 @@ class Vda5050Config:
     """The VDA 5050 vehicle on the same MQTT connection (docs/fleet.md)."""
 
     enabled: bool = False
+    version: Literal["2.0.0"] = "2.0.0"  # the protocol spoken (its major is the topics' v2)
     interface_name: str = checked(rules.mqtt_topic_part, default="uagv")
     manufacturer: str = checked(rules.mqtt_topic_part, default="flask-move-server")
     serial_number: Optional[str] = checked(rules.mqtt_topic_part, default=None)  # None: the robot's name

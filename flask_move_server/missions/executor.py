@@ -68,16 +68,44 @@ class RunExecutor:
 
     # asking ------------------------------------------------------------------
 
-    def start(self, route, trigger="api"):
+    def start(self, route, trigger="api", poses=None, open_end=False, watch=None, paused=False):
         """Start a run of ``route`` (a checked Route); the run as a dict. Refused with the reason when
-        the e-stop is latched, the robot is not navigating, or another run is active."""
-        self._check_waypoints(route.waypoints)
+        the e-stop is latched, the robot is not navigating, or another run is active.
+
+        A fleet manager's order (VDA 5050) gives ``poses`` (per stop: a Pose2D, or None where the stop
+        names a waypoint), ``open_end`` (more stops may come: the run waits at its last one, see
+        :meth:`extend`), ``watch(what, value)`` (told ``reached`` with the stop's index and ``ended``
+        with the run's state, under the executor's lock: never call back) and ``paused`` (it starts paused).
+        """
+        self._check_waypoints([w for i, w in enumerate(route.waypoints) if poses is None or poses[i] is None])
         mode = self._mode_status()  # before our locks: the mode manager calls us under its own
         with self._sending, self._lock:
             self._refuse_start(mode)
             run = Run.of_route(self._history.next_id, route, trigger)
+            run.poses, run.open_end, run.watch = (list(poses) if poses is not None else None), open_end, watch
+            if paused:
+                run.state, run.message = PAUSED, "Paused before {}: resume goes there.".format(run.target)
             self._history.add(run)
             self._begin(run)
+            return run.as_dict()
+
+    def extend(self, run_id, stops, poses, open_end):
+        """More stops for run ``run_id`` (a fleet manager released more of its order); a run waiting at its
+        last stop goes on. RunConflict when the run is no longer active."""
+        self._check_waypoints([w for w, p in zip(stops, poses) if p is None])
+        with self._lock:
+            run = self._find(run_id)
+            if not run.active:
+                raise RunConflict("Run {} is {}: it takes no more stops.".format(run_id, run.state))
+            run.extend(stops, poses, open_end)
+            if run.holding and stops:
+                run.holding = False
+                run.advance()
+            elif run.holding and not open_end:
+                run.holding = False
+                self._finish(run, SUCCEEDED, _summary(run))
+                return run.as_dict()
+            self._changed(run, progress=True)
             return run.as_dict()
 
     def scheduled(self, route):
@@ -125,6 +153,9 @@ class RunExecutor:
         mode = self._mode_status()
         with self._sending, self._lock:
             run = self._find(run_id)
+            if run.state == INTERRUPTED and run.trigger == "vda5050":
+                raise RunConflict("Run {} was a fleet manager's order (VDA 5050): after a restart the fleet manager "
+                                  "sends it again; it is not resumed here.".format(run_id))
             if run.state == PAUSED:
                 self._robot.refuse_motion("runs are")
                 run.state, run.message, self._command = RUNNING, None, None
@@ -233,7 +264,7 @@ class RunExecutor:
             run = self._find(run_id)
             if run.state not in states:
                 raise RunConflict("Run {} is {}: it cannot be {} now.".format(run_id, run.state, done))
-            if run.state != RUNNING:  # paused or interrupted: no goal under way, act here
+            if run.state != RUNNING or run.holding:  # paused, interrupted, waiting: no goal under way
                 self._act_at_rest(run, command)
                 return self._shown(run)
             self._command = command
@@ -246,6 +277,11 @@ class RunExecutor:
         if command == "cancel":
             self._canceled(run)
             return
+        if command == "pause":  # waiting at the last stop of an order for more of it
+            self._pause(run, "Paused at {}: resume waits there for the order's next stops.".format(run.target))
+            return
+        if run.holding:
+            raise RunConflict("Run {} waits at its last stop for more of its order: nothing to skip.".format(run.id))
         run.miss("skipped (POST /runs/{}/skip)".format(run.id))
         if not run.advance():
             self._finish(run, SUCCEEDED, _summary(run))
@@ -271,10 +307,20 @@ class RunExecutor:
     def _finish(self, run, state, message):
         """Lock held: ``run`` ends in ``state`` saying ``message``."""
         run.end(state, message)
+        run.holding = False
         if self._run is run:
             self._run, self._command = None, None
         self._changed(run)
+        self._tell(run, "ended", state)
         log.info("run %d: %s%s", run.id, state, " ({})".format(message) if message else "")
+
+    def _tell(self, run, what, value):
+        """Lock held: the run's watcher (a fleet manager's order) hears ``what`` happened."""
+        if run.watch is not None:
+            try:
+                run.watch(what, value)
+            except Exception:  # a watcher's bug must not stop the robot's run
+                log.exception("run %d: its watcher failed on %s", run.id, what)
 
     def _changed(self, run, progress=False):
         """Lock held: write the runs soon (``progress``: only where it is, written less often), tell
@@ -299,14 +345,14 @@ class RunExecutor:
 
     def _await_running(self, run):
         """Lock held: wait while paused; False once the run is no longer this worker's."""
-        while self._run is run and run.state == PAUSED and not self._closed:
+        while self._run is run and (run.state == PAUSED or run.holding) and not self._closed:
             self._lock.wait()
         return self._run is run and run.state == RUNNING and not self._closed
 
     def _go(self, run):
         """Send the current waypoint and wait for its end: ``(state, why)``; None when the run is over."""
         try:
-            waypoint = self._store.get(run.target)
+            goal = self._goal_of(run)
         except UnknownWaypoint as exc:
             return "missing", str(exc)
         with self._sending:
@@ -314,7 +360,7 @@ class RunExecutor:
                 if self._run is not run or run.state != RUNNING or self._command is not None:
                     return self._command_only()
             try:
-                seq = self._robot.run_goto(Goal(Pose2D(waypoint.x, waypoint.y, waypoint.yaw), waypoint.name))
+                seq = self._robot.run_goto(goal)
             except MoveServerError as exc:
                 with self._lock:
                     if self._run is run:
@@ -323,6 +369,14 @@ class RunExecutor:
                 return None
             self._seq = seq
         return self._wait_goal(run, seq)
+
+    def _goal_of(self, run):
+        """The current stop as a goal: its own pose (an order's node), or its waypoint's (UnknownWaypoint)."""
+        pose = run.pose_of(run.index)
+        if pose is not None:
+            return Goal(pose, run.target)
+        waypoint = self._store.get(run.target)
+        return Goal(Pose2D(waypoint.x, waypoint.y, waypoint.yaw), waypoint.name)
 
     def _command_only(self):
         """Lock held: a command came before the goal was sent: act on it as on a canceled goal."""
@@ -352,6 +406,7 @@ class RunExecutor:
                 return
             if state == "succeeded":  # reached, even if a command came as it arrived
                 run.visit()
+                self._tell(run, "reached", run.index)
             elif command == "skip":
                 run.miss("skipped (POST /runs/{}/skip)".format(run.id))
             elif command == "pause":  # the robot stopped short of it: resume sends it again
@@ -394,11 +449,23 @@ class RunExecutor:
                 return
             pause = command == "pause"
         if not run.advance():
+            if run.open_end:
+                self._hold(run, pause)
+                return
             self._finish(run, SUCCEEDED, _summary(run))
         elif pause:
             self._pause(run, "Paused before {}: resume goes there.".format(run.target))
         else:
             self._changed(run, progress=True)
+
+    def _hold(self, run, pause):
+        """Lock held: ``run`` reached its last stop, and more may come (:meth:`extend`): it waits there."""
+        run.holding = True
+        if pause:
+            self._pause(run, "Paused at {}: resume waits there for the order's next stops.".format(run.target))
+            return
+        run.message = "Waiting at {} for the next stops of the order.".format(run.target)
+        self._changed(run)
 
     def close(self):
         """The server stops: the active run is left ``interrupted``; the worker ends. Idempotent."""

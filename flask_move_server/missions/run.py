@@ -46,10 +46,26 @@ class Run:
     started: str = field(default_factory=now_text)
     ended: object = None
     message: object = None
+    # A fleet manager's order (VDA 5050): not kept across restarts, never shown by the API.
+    poses: object = field(default=None, repr=False, compare=False)  # per stop: Pose2D, or None (a waypoint)
+    open_end: bool = field(default=False, repr=False, compare=False)  # more stops may come: wait at the last
+    holding: bool = field(default=False, repr=False, compare=False)  # waiting at the last stop for more
+    watch: object = field(default=None, repr=False, compare=False)  # watch(what, value) as it goes
 
     @classmethod
     def of_route(cls, run_id, route, trigger):
         return cls(run_id, route.name, list(route.waypoints), route.loops, route.dwell, route.on_failure, trigger)
+
+    def pose_of(self, index):
+        """The pose the stop at ``index`` names itself, or None (it names a waypoint)."""
+        return self.poses[index] if self.poses is not None else None
+
+    def extend(self, stops, poses, open_end):
+        """More stops at the end (a fleet manager released more of its order); ``open_end``: still more to come."""
+        self.waypoints.extend(stops)
+        if self.poses is not None:
+            self.poses.extend(poses)
+        self.open_end = open_end
 
     @property
     def active(self):

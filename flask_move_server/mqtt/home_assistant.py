@@ -35,10 +35,20 @@ SENSORS = (("target", "Target", "mdi:map-marker-path", "value_json.target"),
            ("last_reached", "Last reached", "mdi:map-marker-check", "value_json.last_reached"))
 
 
-def discovery(prefix, root, robot, device, waypoints, routes, battery_known, enabled=True):
-    """Every ``(config topic, payload)`` of the robot's entities; payload "" removes one."""
+def discovery(prefix, root, robot, device, waypoints, routes, battery_known, enabled=True, vda_connection=None):
+    """Every ``(config topic, payload)`` of the robot's entities; payload "" removes one.
+
+    ``vda_connection``: the VDA 5050 ``connection`` topic, which holds the connection's one last will
+    when the robot is a VDA 5050 vehicle too: Home Assistant then follows it beside ``availability``.
+    """
     common = {"availability_topic": root + "/availability", "device": device,
               "origin": {"name": MANUFACTURER, "sw_version": __version__}}
+    if vda_connection is not None:
+        del common["availability_topic"]
+        common["availability"] = [{"topic": root + "/availability"}, {
+            "topic": vda_connection, "payload_available": "online", "payload_not_available": "offline",
+            "value_template": "{{ 'online' if value_json.connectionState == 'ONLINE' else 'offline' }}"}]
+        common["availability_mode"] = "latest"
     state = root + "/state"
     configs = [
         ("select", "goto", {"name": "Go to", "icon": "mdi:map-marker", "command_topic": root + "/goto/set",
@@ -86,8 +96,9 @@ def device_info(robot, name, configuration_url):
 class HomeAssistant:
     """Publishes the discovery configs on ``link`` when they are due (see the module's docstring)."""
 
-    def __init__(self, link, config, robot_name, device, store, events=None):
+    def __init__(self, link, config, robot_name, device, store, events=None, vda_connection=None):
         self._link, self._config, self._robot_name, self._device = link, config, robot_name, device
+        self._vda_connection = vda_connection
         self._store = store
         self._battery_known = False  # told by the state topic (battery_heard), never read off the robot here
         self.status_topic = config.discovery_prefix + "/status"
@@ -147,7 +158,8 @@ class HomeAssistant:
         waypoints = [wp.name for wp in self._store.all()]
         routes = [route.name for route in self._store.routes()]
         return discovery(self._config.discovery_prefix, self._link.root, self._robot_name, self._device,
-                         waypoints, routes, self._battery_known, enabled=self._config.enabled)
+                         waypoints, routes, self._battery_known, enabled=self._config.enabled,
+                         vda_connection=self._vda_connection)
 
     def close(self):
         self._stop.set()

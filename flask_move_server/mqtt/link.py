@@ -42,8 +42,10 @@ class MqttLink:
         self.root = "{}/{}".format(TOPIC_ROOT, robot_name)
         self.availability = self.root + "/availability"
         self.counts = Counter()  # dropped_out, offline, dropped_in, retained, too_big, sent, received
-        self._handlers = {}  # topic -> (callback(text), takes_retained)
+        self._handlers = {}  # topic -> (callback(text), takes_retained, max_payload, too_big)
         self._owners = []
+        self._will = (self.availability, "offline")
+        self._last_words = [(self.availability, lambda: "offline")]
         self._outbox = queue.Queue(maxsize=config.outbox)
         self._inbox = queue.Queue(maxsize=INBOX)
         self._connected = threading.Event()
@@ -56,9 +58,19 @@ class MqttLink:
 
     # set-up ------------------------------------------------------------------
 
-    def handle(self, topic, callback, takes_retained=False):
-        """Call ``callback(text)`` (in the dispatcher thread) for each message on ``topic``."""
-        self._handlers[topic] = (callback, takes_retained)
+    def handle(self, topic, callback, takes_retained=False, max_payload=MAX_PAYLOAD, too_big=None):
+        """Call ``callback(text)`` (in the dispatcher thread) for each message on ``topic``; a payload
+        over ``max_payload`` bytes is dropped, and told to ``too_big(size)`` (quick: paho's thread)."""
+        self._handlers[topic] = (callback, takes_retained, max_payload, too_big)
+
+    def set_will(self, topic, payload):
+        """The broker's last will (one per connection): retained ``payload`` on ``topic``; before :meth:`start`.
+        ``<root>/availability`` says ``offline`` otherwise."""
+        self._will = (topic, payload)
+
+    def say_on_close(self, topic, payload):
+        """On a clean close, publish ``payload()`` (retained) on ``topic`` too, before disconnecting."""
+        self._last_words.append((topic, payload))
 
     def when_connected(self, callback):
         """Call ``callback()`` after each connect (in paho's thread: publish, never wait)."""
@@ -67,7 +79,7 @@ class MqttLink:
     def start(self):
         """Connect in the background (the server never waits for the broker); returns self."""
         cfg, client = self.config, self._client
-        client.will_set(self.availability, "offline", qos=1, retain=True)
+        client.will_set(self._will[0], self._will[1], qos=1, retain=True)
         if cfg.username:
             client.username_pw_set(cfg.username, _password(cfg))
         if cfg.tls:
@@ -122,15 +134,17 @@ class MqttLink:
         handler = self._handlers.get(topic)
         if handler is None:
             return
-        callback, takes_retained = handler
+        callback, takes_retained, max_payload, too_big = handler
         if retained and not takes_retained:
             self.counts["retained"] += 1
             self._drops.log(logging.WARNING, "MQTT: ignored a retained message on %s (a command left on "
                             "the broker never moves the robot; clear it with an empty retained message)", topic)
             return
-        if len(payload) > MAX_PAYLOAD:
-            self._dropped("too_big", "MQTT: ignored %d bytes on %s (a command is at most %d bytes)",
-                          len(payload), topic, MAX_PAYLOAD)
+        if len(payload) > max_payload:
+            self._dropped("too_big", "MQTT: ignored %d bytes on %s (at most %d bytes are taken there)",
+                          len(payload), topic, max_payload)
+            if too_big is not None:
+                too_big(len(payload))
             return
         try:
             self._inbox.put_nowait((topic, callback, payload))
@@ -202,7 +216,9 @@ class MqttLink:
         client = self._client
         if self._connected.is_set():
             try:
-                client.publish(self.availability, "offline", qos=1, retain=True).wait_for_publish(CLOSE_WAIT)
+                sent = [client.publish(topic, words(), qos=1, retain=True) for topic, words in self._last_words]
+                for info in sent:
+                    info.wait_for_publish(CLOSE_WAIT)
             except Exception as exc:  # the broker went away meanwhile: its last will says the same
                 log.info("MQTT: could not say offline: %s", exc)
         client.disconnect()

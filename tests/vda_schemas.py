@@ -1,0 +1,37 @@
+"""The VDA 5050 JSON schemas, as a registry package bundles them (PyPI ``vda5050-sdk``, pinned in setup.py).
+
+It bundles the 2.1.0 schemas: the 2.0.0 messages this robot sends meet them (2.1.0 only added
+optional fields; the robot sends none of the fields 2.1.0 dropped). ``check(kind, message)``
+raises AssertionError naming the first field that breaks the schema.
+"""
+
+import functools
+import json
+import os
+
+import pytest
+
+vda5050 = pytest.importorskip("vda5050", reason="vda5050-sdk is not installed (pip install -e '.[test]'; "
+                                                "it needs Python 3.10+)")
+jsonschema = pytest.importorskip("jsonschema")
+
+KINDS = ("order", "instantActions", "state", "visualization", "connection", "factsheet")
+
+
+@functools.lru_cache(maxsize=None)
+def validator(kind):
+    folder = os.path.join(os.path.dirname(vda5050.__file__), "validation", "schemas")
+    with open(os.path.join(folder, kind + ".json"), encoding="utf-8") as f:
+        schema = json.load(f)
+    return jsonschema.Draft202012Validator(schema, format_checker=jsonschema.Draft202012Validator.FORMAT_CHECKER)
+
+
+def problems(kind, message):
+    """What breaks ``kind``'s schema in ``message``: a list of sentences (empty when it is valid)."""
+    return ["{}: {}".format("/".join(str(p) for p in e.absolute_path) or "(top)", e.message)
+            for e in validator(kind).iter_errors(message)]
+
+
+def check(kind, message):
+    found = problems(kind, message)
+    assert not found, "{} message breaks the VDA 5050 schema: {}".format(kind, "; ".join(found[:5]))
