@@ -23,6 +23,11 @@ ROS_DEBS := python3-rospy python3-rosmaster python3-roslaunch python3-rosgraph p
 DEPLOY_TEST_DEBS := systemd rospack-tools python3-wheel
 # A real MQTT broker for the Home Assistant and VDA 5050 tests (started by the tests on a free port).
 MQTT_TEST_DEBS := mosquitto
+# The VDA 5050 tests' master: npm's vda-5050-lib (its MasterController) run by node, installed from
+# the lock file in tests/vda_master (tests/vda_master.py). Node and npm from Debian when npm is missing.
+VDA_MASTER := tests/vda_master
+VDA_MASTER_INSTALLED := $(VDA_MASTER)/node_modules/.installed
+NODE_DEBS := nodejs npm
 # The phone page's browser tests: Debian's chromium, driven by Playwright (no browser download).
 BROWSER_TEST_DEBS := chromium
 # Debian's own builds of our Python dependencies: what a Pi gets from apt (make test-debian).
@@ -57,8 +62,19 @@ lint: setup
 	$(VENV)/bin/vermin --target=3.8- --no-tips --violations --eval-annotations --backport dataclasses \
 		flask_move_server tests bench setup.py
 
-pytest: setup
+pytest: setup $(VDA_MASTER_INSTALLED)
 	$(PY) -m pytest $(XDIST) $(PYTEST_ARGS)
+
+# npm ci: exactly the lock file's packages (vda-5050-lib 1.4.0 and its dependencies), again when it
+# changes. A node that came with its own npm (NodeSource's nodejs provides npm) is used as it is:
+# apt-ensure is asked for Debian's nodejs and npm only when there is no npm at all.
+$(VDA_MASTER_INSTALLED): $(VDA_MASTER)/package.json $(VDA_MASTER)/package-lock.json
+	@command -v npm >/dev/null || { echo "==> no npm: Debian's $(NODE_DEBS) (apt), for the VDA 5050 tests"; \
+		./scripts/apt-ensure $(NODE_DEBS); }
+	@command -v npm >/dev/null || { echo "npm is missing: install Node.js and npm ($(NODE_DEBS))" >&2; exit 1; }
+	@echo "==> the VDA 5050 tests' master: vda-5050-lib from npm into $(VDA_MASTER)/node_modules (npm ci)"
+	@cd $(VDA_MASTER) && npm ci --no-audit --no-fund --loglevel=error
+	@touch $@
 
 test: lint pytest
 
@@ -82,7 +98,7 @@ DEBIAN_SKIPS := --ignore=tests/test_stack_launched.py --ignore=tests/test_modes_
 
 # The servers roslaunch starts (scripts/flask_move_server_node) run on the same Debian packages, and
 # need no .venv of make test's.
-test-debian: $(DEBIAN_VENV)/.installed
+test-debian: $(DEBIAN_VENV)/.installed $(VDA_MASTER_INSTALLED)
 	FLASK_MOVE_SERVER_PYTHON=$(abspath $(DEBIAN_VENV))/bin/python \
 		$(DEBIAN_VENV)/bin/python -m pytest -p no:cacheprovider $(XDIST) $(DEBIAN_SKIPS) $(PYTEST_ARGS)
 
@@ -118,4 +134,4 @@ bench: setup
 	$(PY) -m bench
 
 clean:
-	rm -rf $(VENV) $(DEBIAN_VENV) build *.egg-info .pytest_cache .ruff_cache
+	rm -rf $(VENV) $(DEBIAN_VENV) build *.egg-info .pytest_cache .ruff_cache $(VDA_MASTER)/node_modules
