@@ -27,7 +27,8 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 # next as it frees up. (xdist's own `loadgroup` marks are not honoured with pytest 9: a module's
 # tests were spread over both workers and lost their shared state.)
 REALTIME = ("sim", "modes_robot", "stack_launched", "launch", "motion_stop", "stop_path",
-            "phantom_goals", "mdns_lan", "server_process", "estop", "home_assistant", "mqtt_resilience")
+            "phantom_goals", "mdns_lan", "server_process", "estop", "home_assistant", "mqtt_resilience",
+            "vda5050")
 
 
 def lane_of(path):

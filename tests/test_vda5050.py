@@ -293,8 +293,8 @@ def test_the_robot_stopped_on_the_robot_ends_the_order_and_says_so(sim, fleet, i
     fleet.send_order("stopped", nodes, edges_of(nodes))
     fleet.state(lambda s: s["orderId"] == "stopped" and s["driving"], message="driving")
     assert sim.post("/estop").status_code == 200
-    state = fleet.state(lambda s: s["safetyState"]["eStop"] == "REMOTE" and not s["nodeStates"])
-    assert "orderError" in error_types(state) and not state["driving"]
+    state = fleet.state(lambda s: s["safetyState"]["eStop"] == "REMOTE" and not s["nodeStates"] and not s["driving"])
+    assert "orderError" in error_types(state)
     assert newest_run(sim)["state"] == "canceled"
     sim.post("/estop/release")
     assert fleet.state(lambda s: s["safetyState"]["eStop"] == "NONE")
@@ -320,3 +320,37 @@ def test_an_unknown_instant_action_fails_and_says_so(sim, fleet, idle):
     assert _action(state, "lift-1")["actionStatus"] == "FAILED"
     assert any("liftFork" in e["errorDescription"] for e in state["errors"])
     assert standing(sim, 0.5)
+
+
+# start-up and shutdown -----------------------------------------------------------------
+
+def test_a_retained_order_moves_nothing_at_start_up_and_a_clean_stop_says_offline(tmp_path):
+    """On a broker of its own: a second robot of the same name would share the MQTT client id."""
+    broker = Broker(tmp_path)
+    fleet = Fleet(broker)
+    try:
+        _retained_order_then_clean_stop(tmp_path, broker, fleet)
+    finally:
+        fleet.close()
+        broker.stop()
+
+
+def _retained_order_then_clean_stop(tmp_path, broker, fleet):
+    start = [node("r0", 0, position={"x": 0.0, "y": 0.0, "mapId": DEMO}), node("kitchen", 2)]
+    left = dict(fleet.header(), orderId="left-on-the-broker", orderUpdateId=0, nodes=start, edges=edges_of(start))
+    fleet.send(BASE + "order", json.dumps(left), retain=True)
+    try:
+        robot = VdaSim(tmp_path, broker)
+    finally:
+        fleet.send(BASE + "order", "", retain=True)  # the broker forgets it
+    try:
+        assert fleet.ask_state(lambda s: "agvPosition" in s)["orderId"] == ""
+        assert standing(robot) and robot.get("/runs").json()["runs"] == []
+        status = json.loads(retained_on(broker, "homeassistant/sensor/robot/status/config"))
+        assert status["availability_mode"] == "latest"
+        assert [a["topic"] for a in status["availability"]] == ["flask-move-server/robot/availability",
+                                                                BASE + "connection"]
+    finally:
+        stop_process(robot.proc)
+    assert robot.proc.returncode == 0
+    assert json.loads(retained_on(broker, BASE + "connection"))["connectionState"] == "OFFLINE"

@@ -47,6 +47,8 @@ KEPT_ACTION_STATES = 50
 SPREAD_FOR_NO_SCORE = 0.5  # m of AMCL's position spread at which localizationScore reaches 0
 ESTOP_TYPES = {"button": "MANUAL"}  # the e-stop's source → safetyState.eStop; others are REMOTE
 FINISHED, FAILED = "FINISHED", "FAILED"
+REPORTED = object()  # an instant action that reported its own end
+RIDE_ALONG = ("batteryState", "information")  # no state of their own (section 6.10): sent with the next one
 ENDED = {"failed": "The order ended on the robot: a node could not be reached (GET /runs says why).",
          "canceled": "The order ended on the robot: stopped there (POST /stop, the e-stop, a goal or the joystick).",
          "interrupted": "The order ended on the robot: the server stopped."}
@@ -131,8 +133,10 @@ class Vehicle:
         """The state when it changed (or STATE_EVERY passed); the pose on visualization when it moved."""
         body, position = self.state_body()
         now = time.monotonic()
-        if body != self._last_state or now - self._last_sent >= STATE_EVERY:
-            self._last_state, self._last_sent = body, now
+        trigger = {k: v for k, v in body.items() if k not in RIDE_ALONG}
+        trigger["agvPosition"] = position and (position["mapId"], position["positionInitialized"])  # known or not
+        if trigger != self._last_state or now - self._last_sent >= STATE_EVERY:
+            self._last_state, self._last_sent = trigger, now
             sent = dict(body, agvPosition=position) if position is not None else body
             self._link.publish(self.topic("state"), self._json("state", sent))
         if position is not None and position != self._last_pose and now - self._last_shown >= VISUALIZATION_EVERY:
@@ -156,6 +160,8 @@ class Vehicle:
             run_id = self._run_id
         if run_id is not None and not body["paused"]:  # the run paused from the page or the API counts too
             body["paused"] = self._run_state(run_id) == "paused"
+        # Read again after the order: a stop that came meanwhile (and dropped the order) is not "driving".
+        nav, teleop = robot.navigation_status() if nav.get("state") == "active" else nav, robot.teleop_control.status()
         body.update({
             "driving": nav.get("state") == "active" or bool(teleop.get("active")),
             "newBaseRequest": False, "operatingMode": "MANUAL" if teleop.get("active") else "AUTOMATIC",
@@ -346,26 +352,32 @@ class Vehicle:
             if isinstance(exc, Refusal):
                 self._refuse(exc, action["actionType"])
             return
-        self._action_state(action, FINISHED, result)
+        if result is not REPORTED:
+            self._action_state(action, FINISHED, result)
 
-    def _action_state(self, action, status, result=None):
+    def _action_state(self, action, status, result=None, then=None):
+        """``action`` is ``status`` now; ``then()`` is done under the same lock (one state tells both)."""
         state = {"actionId": action["actionId"], "actionType": action["actionType"], "actionStatus": status}
         if result:
             state["resultDescription"] = str(result)[:200]
         with self._lock:
             states = [a for a in self._action_states if a["actionId"] != action["actionId"]]
             self._action_states = (states + [state])[-KEPT_ACTION_STATES:]
+            if then is not None:
+                then()
         self._wake.set()
 
     def _cancel_order(self, action):
+        """RUNNING until the robot stands, then FINISHED with the order dropped, in one state (section 6.6.3)."""
         with self._lock:
             if not self._book.busy:
                 raise Refusal("noOrderToCancel", "There is no order to cancel.", [("actionId", action["actionId"])])
-            self._book.drop()
-            run_id, self._run_id, self._driven = self._run_id, None, None
+            run_id, self._run_id, self._driven = self._run_id, None, None  # the run's end is ours: no error
+        self._action_state(action, "RUNNING")
         if run_id is not None and self._run_active(run_id):
             self._runs.cancel(run_id)
-        return "The robot stopped; the order is dropped."
+        self._action_state(action, FINISHED, "The robot stopped; the order is dropped.", then=self._book.drop)
+        return REPORTED
 
     def _start_pause(self, _action):
         with self._lock:
@@ -419,7 +431,13 @@ def _parsed(text):
 
 
 def _instant_actions(message):
-    """The actions of an instantActions message, its fields checked; Refusal (validationError)."""
+    """The actions of an instantActions message, its fields checked; Refusal (validationError).
+
+    The standard's 2.0.0 schema names the list ``actions``; 1.1 named it ``instantActions``, and some
+    masters still send that with 2.0.0 (npm's vda-5050-lib 1.4): both are taken.
+    """
+    if isinstance(message, dict) and "actions" not in message and "instantActions" in message:
+        message = dict(message, actions=message["instantActions"])
     if not isinstance(message, dict) or not isinstance(message.get("actions"), list):
         raise Refusal("validationError", "instantActions is a JSON object with a list 'actions'.")
     for key, kind in HEADER:
