@@ -33,7 +33,7 @@ BROWSER_TEST_DEBS := chromium
 # Debian's own builds of our Python dependencies: what a Pi gets from apt (make test-debian).
 DEBIAN_PY_DEBS := python3-flask python3-waitress python3-yaml python3-requests python3-zeroconf \
 	python3-serial python3-paho-mqtt python3-pytest python3-pytest-timeout python3-pytest-xdist \
-	python3-hypothesis python3-setuptools
+	python3-hypothesis python3-setuptools python3-jsonschema
 
 .PHONY: setup test lint pytest test-debian run demo bench clean
 
@@ -82,6 +82,9 @@ $(DEBIAN_VENV)/.installed: setup.py Makefile
 	./scripts/apt-ensure $(ROS_DEBS) $(DEPLOY_TEST_DEBS) $(MQTT_TEST_DEBS) $(DEBIAN_PY_DEBS)
 	$(SYSTEM_PYTHON) -m venv --system-site-packages $(DEBIAN_VENV)
 	$(DEBIAN_VENV)/bin/python -m pip install -q --disable-pip-version-check --no-deps --no-build-isolation -e .
+	# The VDA 5050 schemas the tests check every message against (a test tool, not in Debian): the
+	# files only, read with Debian's jsonschema.
+	$(DEBIAN_VENV)/bin/python -m pip install -q --disable-pip-version-check --no-deps "vda5050-sdk==0.2.0"
 	touch $@
 
 # What Debian's Python packages cannot change is left to `make test`: the simulated robot's long
@@ -90,11 +93,13 @@ $(DEBIAN_VENV)/.installed: setup.py Makefile
 # waitress, paho or PyYAML decide. Their HTTP, MQTT and client sides stay in this pass: the API and
 # the event stream (test_api.py, test_events_sim.py, ...), runs (test_routes_web.py,
 # test_client_routes.py, test_runs_robot.py), exploring (test_explore_web.py, test_client_explore.py,
-# test_explorer.py), Home Assistant over paho 1.6 (test_home_assistant.py, test_mqtt_resilience.py).
+# test_explorer.py), Home Assistant over paho 1.6 (test_home_assistant.py, test_mqtt_resilience.py),
+# VDA 5050 over paho 1.6 driven by the npm master (test_vda5050_master.py; test_vda5050.py's many
+# drives are make test's).
 DEBIAN_SKIPS := --ignore=tests/test_stack_launched.py --ignore=tests/test_modes_robot.py \
 	--ignore=tests/test_sim_modes.py --ignore=tests/test_runs_sim.py --ignore=tests/test_explore_sim.py \
 	--ignore=tests/test_sim_life.py --ignore=tests/test_sim_e2e.py --ignore=tests/test_launch.py \
-	--ignore=tests/test_sim_real_stack.py --ignore=tests/test_sim_whereabouts.py
+	--ignore=tests/test_sim_real_stack.py --ignore=tests/test_sim_whereabouts.py --ignore=tests/test_vda5050.py
 
 # The servers roslaunch starts (scripts/flask_move_server_node) run on the same Debian packages, and
 # need no .venv of make test's.

@@ -122,6 +122,22 @@ def test_a_fleet_manager_asks_for_the_factsheet_and_gets_it(sim, fleet, idle):
 
 # orders ----------------------------------------------------------------------------
 
+def test_the_order_in_the_docs_sends_the_demo_robot_from_its_dock_to_the_kitchen(sim, fleet, idle):
+    with open(os.path.join(ROOT, "docs", "fleet.md"), encoding="utf-8") as f:
+        text = f.read()
+    command = text[text.index("mosquitto_pub -t "):]
+    topic = command.split()[2]
+    payload = command[command.index("'") + 1:command.index("'", command.index("'") + 1)]
+    assert topic == BASE + "order"
+    fleet.send(topic, payload)
+    done = fleet.state(lambda s: s["orderId"] == "first" and s["lastNodeId"] == "kitchen" and not s["driving"],
+                       timeout=60, message="the robot in the kitchen")
+    assert done["nodeStates"] == [] and done["errors"] == []
+    kitchen = sim.get("/waypoints/kitchen").json()
+    truth = true_pose(sim)
+    assert math.hypot(truth["x"] - kitchen["x"], truth["y"] - kitchen["y"]) < 0.3
+
+
 def test_an_order_of_three_nodes_is_driven_node_by_node(sim, fleet, idle):
     nodes = [node("here", 0, position=where(idle)), node("sofa", 2),
              node("by-the-dock", 4, position={"x": 0.4, "y": 0.0, "mapId": DEMO}, theta=0.0)]

@@ -212,4 +212,5 @@ def test_raw_messages_go_out_unchecked_and_bad_commands_answer_errors(master, ag
         master.order({"orderId": "o3", "orderUpdateId": 0, "nodes": [node("n1", 0)], "edges": []})
     # One headerId counter for the topic: the raw order had 0, and the invalid order took 1 before
     # the library refused to send it, so the next order sent has 2 (the AGV never saw a 1).
-    assert json.loads(agv.last(BASE + "order"))["headerId"] == 2
+    sent = agv.wait_last(BASE + "order", lambda text: '"o3"' in text, message="order o3 at the AGV")
+    assert json.loads(sent)["headerId"] == 2

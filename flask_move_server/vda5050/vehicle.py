@@ -90,6 +90,7 @@ class Vehicle:
         return "{}/{}".format(self.base, name)
 
     def start(self):
+        log.info("VDA 5050: a vehicle on %s/ (orders from a fleet manager: docs/fleet.md)", self.base)
         self._thread = threading.Thread(target=self._loop, name="vda5050-state", daemon=True)
         self._thread.start()
         return self
