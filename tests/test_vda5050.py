@@ -232,6 +232,7 @@ def test_a_refused_order_says_why_and_moves_nothing(sim, fleet, idle, case):
 @pytest.mark.parametrize("payload, words", [
     ("{not json", "Not JSON"),
     ("x" * (1024 * 1024), "larger than the 262144 bytes"),
+    ("[" * 100000, "nested too deep"),
 ])
 def test_malformed_or_huge_messages_are_validation_errors(sim, fleet, idle, payload, words):
     runs_before = len(sim.get("/runs").json()["runs"])
@@ -325,6 +326,9 @@ def test_init_position_on_the_active_map_relocalizes_and_on_another_fails(sim, f
     assert "not the map the robot navigates on (demo)" in _action(state, "init-1")["resultDescription"]
     fleet.instant(("init-2", "initPosition", {"x": truth["x"], "y": truth["y"], "theta": truth["yaw"],
                                               "mapId": DEMO, "lastNodeId": "at-home"}))
+    fleet.instant(("init-nan", "initPosition", {"x": float("nan"), "y": 0.0, "theta": 0.0, "mapId": DEMO}))
+    state = fleet.state(lambda s: _action(s, "init-nan") is not None)
+    assert _action(state, "init-nan")["actionStatus"] == "FAILED"
     state = fleet.state(lambda s: _action(s, "init-2") is not None, timeout=20)
     assert _action(state, "init-2")["actionStatus"] == "FINISHED", _action(state, "init-2")
     assert fleet.state(lambda s: s["lastNodeId"] == "at-home")["agvPosition"]["positionInitialized"]

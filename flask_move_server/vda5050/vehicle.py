@@ -40,7 +40,7 @@ from flask_move_server.vda5050.order import (
 
 log = logging.getLogger(__name__)
 
-STATE_EVERY = 30.0  # s: the state is sent at least this often (section 6.10)
+STATE_EVERY = 29.5  # s: the state is sent at least every 30 s (section 6.10), a late look (LOOK_EVERY) included
 LOOK_EVERY = 0.25  # s between looks at what changed (driving, the e-stop, the battery)
 VISUALIZATION_EVERY = 1.0  # s: the pose on ``visualization``, while it changes
 KEPT_ACTION_STATES = 50
@@ -58,10 +58,11 @@ class Vehicle:
     """One VDA 5050 vehicle: ``link`` the MQTT connection, ``robot`` the facade, ``runs`` the executor,
     ``store`` the active map's waypoints, ``modes`` the mode manager (None: the stack is someone else's)."""
 
-    def __init__(self, link, config, robot_name, robot, runs, store, modes, factsheet, own_map="default"):
+    def __init__(self, link, config, robot_name, robot, runs, store, modes, factsheet, own_map="default",
+                 clock=time.monotonic):
         """``own_map``: the mapId of the map the navigation stack was configured with (no named map in use)."""
         self._link, self._robot, self._runs, self._store, self._modes = link, robot, runs, store, modes
-        self._own_map = own_map
+        self._own_map, self._clock = own_map, clock
         serial = config.serial_number or robot_name
         self.base = "{}/v{}/{}/{}".format(config.interface_name, config.version.split(".")[0],
                                           config.manufacturer, serial)
@@ -133,7 +134,7 @@ class Vehicle:
     def _tell(self):
         """The state when it changed (or STATE_EVERY passed); the pose on visualization when it moved."""
         body, position = self.state_body()
-        now = time.monotonic()
+        now = self._clock()
         trigger = {k: v for k, v in body.items() if k not in RIDE_ALONG}
         trigger["agvPosition"] = position and (position["mapId"], position["positionInitialized"])  # known or not
         if trigger != self._last_state or now - self._last_sent >= STATE_EVERY:
@@ -255,7 +256,7 @@ class Vehicle:
 
     def _accept(self, order, kind, stops):
         with self._lock:
-            before, run_id = self._book.copy(), self._run_id
+            before, run_id = self._book.copy(), self._run_id if kind != NEW else None  # a new order: a new run
             released = {n["sequenceId"] for n in self._book.take(order, kind)}
             horizon = self._book.horizon
             if kind == NEW:
@@ -399,7 +400,8 @@ class Vehicle:
     def _init_position(self, action):
         params = {p.get("key"): p.get("value") for p in action.get("actionParameters", []) if isinstance(p, dict)}
         for key in ("x", "y", "theta"):
-            if isinstance(params.get(key), bool) or not isinstance(params.get(key), (int, float)):
+            value = params.get(key)
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
                 raise Refusal("validationError", "initPosition needs a number '{}'.".format(key),
                               [("actionId", action["actionId"])])
         active = self._active_map()
@@ -429,6 +431,8 @@ def _parsed(text):
         return json.loads(text)
     except ValueError as exc:
         raise Refusal("validationError", "Not JSON: {}".format(exc))
+    except RecursionError:  # "[[[[…" nested deeper than Python's JSON reader goes
+        raise Refusal("validationError", "Not JSON this robot reads: nested too deep.")
 
 
 def _instant_actions(message):
