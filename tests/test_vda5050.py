@@ -292,8 +292,8 @@ def test_cancel_order_stops_the_robot_and_drops_the_order_then_there_is_none_to_
     fleet.send_order("canceled", nodes, edges_of(nodes))
     fleet.state(lambda s: s["orderId"] == "canceled" and s["driving"], message="driving")
     fleet.instant(("cancel-1", "cancelOrder"))
-    state = fleet.state(lambda s: _action(s, "cancel-1") is not None and not s["driving"])
-    assert _action(state, "cancel-1")["actionStatus"] == "FINISHED"
+    state = fleet.state(lambda s: (_action(s, "cancel-1") or {}).get("actionStatus") == "FINISHED")
+    assert not state["driving"]
     assert state["nodeStates"] == [] and state["edgeStates"] == [] and state["orderId"] == "canceled"
     assert standing(sim)
     assert newest_run(sim)["state"] == "canceled"
@@ -342,6 +342,45 @@ def test_an_unknown_instant_action_fails_and_says_so(sim, fleet, idle):
     assert standing(sim, 0.5)
 
 
+# the owner's commands beside the fleet manager's -------------------------------------------
+
+def test_the_owner_cannot_skip_a_node_of_the_fleet_managers_order(sim, fleet, idle):
+    nodes = [node("q0", 0, position=where(idle)), node("sofa", 2)]
+    fleet.send_order("no-skip", nodes, edges_of(nodes))
+    fleet.state(lambda s: s["orderId"] == "no-skip" and s["driving"], message="driving")
+    r = sim.post("/runs/{}/skip".format(newest_run(sim)["id"]))
+    assert r.status_code == 409 and "fleet manager" in r.json()["message"]
+    done = fleet.state(lambda s: s["orderId"] == "no-skip" and s["lastNodeId"] == "sofa" and not s["driving"],
+                       timeout=60, message="the order driven to its end")
+    assert done["nodeStates"] == []
+
+
+def test_a_pause_the_owner_resumes_is_no_longer_told_as_paused(sim, fleet, idle):
+    nodes = [node("w0", 0, position=where(idle)), node("bedroom", 2)]
+    fleet.send_order("owner-resumes", nodes, edges_of(nodes))
+    fleet.state(lambda s: s["orderId"] == "owner-resumes" and s["driving"], message="driving")
+    fleet.instant(("pause-o", "startPause"))
+    fleet.state(lambda s: s["paused"] and not s["driving"], message="paused")
+    assert sim.post("/runs/{}/resume".format(newest_run(sim)["id"])).status_code == 200
+    state = fleet.state(lambda s: s["driving"], message="driving again")
+    assert state["paused"] is False
+    fleet.state(lambda s: s["lastNodeId"] == "bedroom" and not s["driving"], timeout=60, message="at the bedroom")
+
+
+def test_an_order_waiting_for_its_release_ends_when_the_owner_sends_the_robot_elsewhere(sim, fleet, idle):
+    start = where(idle)
+    nodes = [node("v0", 0, position=start), node("v1", 2, False, position=dict(start, x=start["x"] + 0.5))]
+    fleet.send_order("waiting", nodes, edges_of(nodes))
+    waiting = fleet.state(lambda s: s["orderId"] == "waiting" and s["nodeStates"])
+    assert waiting["nodeStates"][0]["released"] is False
+    assert waiting["nodeStates"][0]["nodePosition"]["theta"] == 0.0  # none sent: the way from v0, +x
+    assert sim.post("/goto", {"name": "sofa"}).status_code == 202
+    ended = fleet.state(lambda s: not s["nodeStates"] and "orderError" in error_types(s),
+                        message="the order ended on the robot")
+    assert any("on its way to sofa" in e["errorDescription"] for e in ended["errors"])
+    sim.post("/stop")
+
+
 # start-up and shutdown -----------------------------------------------------------------
 
 def test_a_retained_order_moves_nothing_at_start_up_and_a_clean_stop_says_offline(tmp_path):
@@ -367,7 +406,7 @@ def _retained_order_then_clean_stop(tmp_path, broker, fleet):
         assert fleet.ask_state(lambda s: "agvPosition" in s)["orderId"] == ""
         assert standing(robot) and robot.get("/runs").json()["runs"] == []
         status = json.loads(retained_on(broker, "homeassistant/sensor/robot/status/config"))
-        assert status["availability_mode"] == "latest"
+        assert status["availability_mode"] == "all"
         assert [a["topic"] for a in status["availability"]] == ["flask-move-server/robot/availability",
                                                                 BASE + "connection"]
     finally:

@@ -78,7 +78,10 @@ def test_a_well_formed_order_is_taken_as_sent():
     (lambda o: o["edges"][0].update(sequenceId=3), "sequenceId 3, not 1"),
     (lambda o: o["nodes"][1].update(released=False), "is released, but its end node b is not"),
     (lambda o: (o["nodes"][1].update(released=False), o["edges"][0].update(released=False)),
-     "A released node follows one that is not"),
+     "Released edge b-c follows one that is not"),
+    (lambda o: o["edges"][0].update(released=False), "Released node b follows one that is not"),
+    (lambda o: o["nodes"][1]["nodePosition"].update(x=10 ** 400), "'x' of the nodePosition of node b"),
+    (lambda o: o["nodes"][1]["nodePosition"].update(y=2e6), "'y' of the nodePosition of node b"),
     (lambda o: o["nodes"][0].update(nodeId="x" * 201), "longer than 200 characters"),
 ])
 def test_a_malformed_order_is_a_validation_error_saying_what_is_wrong(broken, words):
@@ -113,23 +116,24 @@ def test_an_edge_with_a_trajectory_is_an_order_error():
 # where the nodes are ----------------------------------------------------------
 
 def test_a_node_is_its_position_or_the_waypoint_its_id_names():
-    stops = stops_of([node("a", 0, x=0.0), node("kitchen", 2), node("c", 4, x=2.0, y=2.0)], "demo", {"kitchen"})
+    stops = stops_of([node("a", 0, x=0.0), node("kitchen", 2), node("c", 4, x=2.0, y=2.0)], "demo",
+                     {"kitchen": Pose2D(2.0, 0.0, 0.0)})
     assert [(s.node_id, s.sequence_id) for s in stops] == [("a", 0), ("kitchen", 2), ("c", 4)]
     assert stops[1].pose is None
-    assert stops[2].pose == Pose2D(2.0, 2.0, 0.0)  # no theta, no position before: facing +x
+    assert stops[2].pose == Pose2D(2.0, 2.0, math.pi / 2)  # no theta: the way from the kitchen
 
 
 def test_without_theta_a_node_faces_the_way_from_the_node_before():
     stops = stops_of([node("a", 0, x=0.0), node("b", 2, x=1.0, y=1.0), node("c", 4, x=1.0, y=2.0, theta=3.0)],
-                     "demo", set())
+                     "demo", {})
     assert stops[1].pose.yaw == pytest.approx(math.pi / 4)
     assert stops[2].pose.yaw == 3.0
 
 
 def test_a_node_on_another_map_or_naming_no_waypoint_is_an_order_error():
-    other = refusal(stops_of, [node("a", 0, x=0.0, map_id="cellar")], "demo", set())
+    other = refusal(stops_of, [node("a", 0, x=0.0, map_id="cellar")], "demo", {})
     assert other.error_type == "orderError" and "on map cellar" in str(other)
-    unknown = refusal(stops_of, [node("pantry", 0)], "demo", {"kitchen"})
+    unknown = refusal(stops_of, [node("pantry", 0)], "demo", {"kitchen": Pose2D(0.0, 0.0, 0.0)})
     assert unknown.error_type == "orderError" and "no waypoint of map demo is called so" in str(unknown)
 
 
@@ -239,3 +243,23 @@ def test_each_topic_counts_its_own_header_ids():
     headers = messages.Headers("2.0.0", "m", "s")
     assert [headers.stamp("state", {})["headerId"] for _ in range(3)] == [0, 1, 2]
     assert headers.stamp("connection", {})["headerId"] == 0
+
+
+def test_an_update_piling_up_more_than_200_nodes_to_do_is_refused_and_keeps_the_order():
+    book = taken(order([node("a", 0, x=0.0)] + [node("n{}".format(i), 2 * i, x=float(i)) for i in range(1, 150)]))
+    nodes = [node("n149", 298, x=149.0)] + [node("m{}".format(i), 298 + 2 * i, x=149.0 + i) for i in range(1, 60)]
+    update = check(order(nodes, update=1))
+    assert book.decide(update, None) == UPDATE
+    found = refusal(book.take, update, UPDATE)
+    assert found.error_type == "orderError" and "208 nodes to do" in str(found)
+    assert len(book.node_states()) == 149 and book.update_id == 0
+
+
+def test_a_copy_kept_before_an_update_catches_up_with_what_the_robot_did_since():
+    book = taken(copy.deepcopy(THREE))
+    before = book.copy()
+    book.passed(2, "b")
+    assert before.caught_up(book).last_node_id == "b"
+    assert [n["nodeId"] for n in before.nodes] == ["c"]
+    book.drop()
+    assert not before.caught_up(book).busy

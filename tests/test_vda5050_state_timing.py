@@ -28,7 +28,7 @@ class Link:
     def when_connected(self, callback):
         pass
 
-    def publish(self, topic, payload, retain=False):
+    def publish(self, topic, payload, retain=False, qos=1):
         self.sent.append((topic.rsplit("/", 1)[1], json.loads(payload)))
         return True
 
@@ -42,6 +42,7 @@ class Robot:
         self.node = SimpleNamespace(connected=False)
         self.teleop_control = SimpleNamespace(status=lambda: {"active": False})
         self.pose = SimpleNamespace(current=lambda: None)
+        self.estop = SimpleNamespace(when_engaged=lambda callback: None)
 
     def navigation_status(self):
         return {"state": "idle"}

@@ -1,8 +1,8 @@
 """The VDA 5050 JSON schemas, as a registry package bundles them (PyPI ``vda5050-sdk``, pinned in setup.py).
 
-It bundles the 2.1.0 schemas: the 2.0.0 messages this robot sends meet them (2.1.0 only added
-optional fields; the robot sends none of the fields 2.1.0 dropped). ``check(kind, message)``
-raises AssertionError naming the first field that breaks the schema.
+It bundles the 2.1.0 schemas; 2.0.0's differ, for the fields this robot sends, in one requirement
+2.1.0 dropped, checked here by hand (``stricter_in_2_0``). ``check(kind, message)`` raises
+AssertionError naming the first fields that break them.
 """
 
 import functools
@@ -31,9 +31,22 @@ def validator(kind):
 
 
 def problems(kind, message):
-    """What breaks ``kind``'s schema in ``message``: a list of sentences (empty when it is valid)."""
-    return ["{}: {}".format("/".join(str(p) for p in e.absolute_path) or "(top)", e.message)
-            for e in validator(kind).iter_errors(message)]
+    """What breaks ``kind``'s schema in ``message``, or a 2.0.0 rule 2.1.0 dropped: a list of sentences
+    (empty when it is valid)."""
+    found = ["{}: {}".format("/".join(str(p) for p in e.absolute_path) or "(top)", e.message)
+             for e in validator(kind).iter_errors(message)]
+    return found + stricter_in_2_0(kind, message)
+
+
+def stricter_in_2_0(kind, message):
+    """The one requirement of the 2.0.0 schemas that 2.1.0's no longer make, among the fields this robot
+    sends (found by comparing every ``required`` and ``enum`` of the two sets): a node state's
+    ``nodePosition`` has a ``theta``."""
+    if kind != "state":
+        return []
+    return ["nodeStates/{}/nodePosition: 'theta' is a required property (2.0.0)".format(i)
+            for i, node in enumerate(message.get("nodeStates", []))
+            if "nodePosition" in node and "theta" not in node["nodePosition"]]
 
 
 def check(kind, message):

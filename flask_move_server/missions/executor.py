@@ -74,8 +74,9 @@ class RunExecutor:
 
         A fleet manager's order (VDA 5050) gives ``poses`` (per stop: a Pose2D, or None where the stop
         names a waypoint), ``open_end`` (more stops may come: the run waits at its last one, see
-        :meth:`extend`), ``watch(what, value)`` (told ``reached`` with the stop's index and ``ended``
-        with the run's state, under the executor's lock: never call back) and ``paused`` (it starts paused).
+        :meth:`extend`), ``watch(what, value)`` (told ``reached`` with the stop's index counted from the run's
+        first stop, and ``ended`` with ``(state, message)``, under the executor's lock: never call back)
+        and ``paused`` (it starts paused).
         """
         self._check_waypoints([w for i, w in enumerate(route.waypoints) if poses is None or poses[i] is None])
         mode = self._mode_status()  # before our locks: the mode manager calls us under its own
@@ -143,6 +144,10 @@ class RunExecutor:
         return self._act(run_id, "pause", (RUNNING,), "paused")
 
     def skip(self, run_id):
+        with self._lock:
+            if self._find(run_id).trigger == "vda5050":
+                raise RunConflict("Run {} is a fleet manager's order (VDA 5050): its nodes are not skipped here. "
+                                  "Cancel the run, or let the fleet manager change the order.".format(run_id))
         return self._act(run_id, "skip", ACTIVE, "skipped")
 
     def cancel(self, run_id):
@@ -311,7 +316,7 @@ class RunExecutor:
         if self._run is run:
             self._run, self._command = None, None
         self._changed(run)
-        self._tell(run, "ended", state)
+        self._tell(run, "ended", (state, message))
         log.info("run %d: %s%s", run.id, state, " ({})".format(message) if message else "")
 
     def _tell(self, run, what, value):
@@ -406,7 +411,7 @@ class RunExecutor:
                 return
             if state == "succeeded":  # reached, even if a command came as it arrived
                 run.visit()
-                self._tell(run, "reached", run.index)
+                self._tell(run, "reached", run.trimmed + run.index)
             elif command == "skip":
                 run.miss("skipped (POST /runs/{}/skip)".format(run.id))
             elif command == "pause":  # the robot stopped short of it: resume sends it again

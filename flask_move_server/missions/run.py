@@ -51,6 +51,7 @@ class Run:
     open_end: bool = field(default=False, repr=False, compare=False)  # more stops may come: wait at the last
     holding: bool = field(default=False, repr=False, compare=False)  # waiting at the last stop for more
     watch: object = field(default=None, repr=False, compare=False)  # watch(what, value) as it goes
+    trimmed: int = field(default=0, repr=False, compare=False)  # stops passed and forgotten (extend)
 
     @classmethod
     def of_route(cls, run_id, route, trigger):
@@ -61,10 +62,16 @@ class Run:
         return self.poses[index] if self.poses is not None else None
 
     def extend(self, stops, poses, open_end):
-        """More stops at the end (a fleet manager released more of its order); ``open_end``: still more to come."""
+        """More stops at the end (a fleet manager released more of its order); ``open_end``: still more to come.
+        The stops already passed are forgotten (``trimmed`` counts them), so an order updated for days
+        does not grow its run without end."""
+        passed = self.index
+        del self.waypoints[:passed]
         self.waypoints.extend(stops)
         if self.poses is not None:
+            del self.poses[:passed]
             self.poses.extend(poses)
+        self.index, self.trimmed = 0, self.trimmed + passed
         self.open_end = open_end
 
     @property

@@ -48,7 +48,7 @@ def discovery(prefix, root, robot, device, waypoints, routes, battery_known, ena
         common["availability"] = [{"topic": root + "/availability"}, {
             "topic": vda_connection, "payload_available": "online", "payload_not_available": "offline",
             "value_template": "{{ 'online' if value_json.connectionState == 'ONLINE' else 'offline' }}"}]
-        common["availability_mode"] = "latest"
+        common["availability_mode"] = "all"  # a crash leaves availability "online": the will says otherwise
     state = root + "/state"
     configs = [
         ("select", "goto", {"name": "Go to", "icon": "mdi:map-marker", "command_topic": root + "/goto/set",

@@ -98,10 +98,10 @@ class MqttLink:
 
     # out ---------------------------------------------------------------------
 
-    def publish(self, topic, payload, retain=False):
+    def publish(self, topic, payload, retain=False, qos=1):
         """Queue ``payload`` (text) for ``topic``; False when it was dropped. Never blocks."""
         try:
-            self._outbox.put_nowait((topic, payload, retain))
+            self._outbox.put_nowait((topic, payload, retain, qos))
             return True
         except queue.Full:
             self._dropped("dropped_out", "MQTT: the outbox is full (%d messages; is the broker slow?): "
@@ -116,9 +116,9 @@ class MqttLink:
             if not self._connected.is_set():
                 self.counts["offline"] += 1  # published again, if it is retained, on the next connect
                 continue
-            topic, payload, retain = item
+            topic, payload, retain, qos = item
             try:
-                info = self._client.publish(topic, payload, qos=1, retain=retain)
+                info = self._client.publish(topic, payload, qos=qos, retain=retain)
             except Exception as exc:  # paho refusing a topic or payload must not end the sender
                 log.warning("MQTT: could not publish to %s: %s", topic, exc)
                 continue

@@ -28,6 +28,7 @@ HEADER = (("headerId", int), ("timestamp", str), ("version", str), ("manufacture
 MAX_NODES = 200  # nodes in one order message (the factsheet says so)
 MAX_ID = 200  # characters of an id (the factsheet's maxStringLens)
 FIRST_NODE_DEVIATION = 0.5  # m: how far the robot may stand from a first node without an allowedDeviationXY
+MAX_COORDINATE = 1e6  # m (or rad): a position or angle beyond this is no place on a map
 
 
 class Refusal(Exception):
@@ -88,13 +89,21 @@ def _field(data, key, kind, what, optional=False):
     return value
 
 
+def finite(number):
+    """A number a pose can hold: not NaN or infinite, and not an integer too large for a float."""
+    try:
+        return math.isfinite(number) and abs(number) <= MAX_COORDINATE
+    except OverflowError:
+        return False
+
+
 def _is(value, kind):
     if kind is bool:
         return isinstance(value, bool)
     if isinstance(value, bool):
         return False
     if kind is float:
-        return isinstance(value, (int, float)) and math.isfinite(value)
+        return isinstance(value, (int, float)) and finite(value)
     return isinstance(value, kind)
 
 
@@ -159,16 +168,20 @@ def _structure(nodes, edges):
         if edge["released"] and not end["released"]:
             raise _invalid("Edge {} is released, but its end node {} is not.".format(edge["edgeId"], end["nodeId"]),
                            [("edgeId", edge["edgeId"])])
-    _base_first([n["released"] for n in nodes], "node")
-    _base_first([e["released"] for e in edges], "edge")
+    _base_first(nodes, edges)
     if not nodes[0]["released"]:
         raise _invalid("The first node of an order is released (it is where the robot stands).",
                        [("nodeId", nodes[0]["nodeId"])])
 
 
-def _base_first(released, what):
-    if any(later and not earlier for earlier, later in zip(released, released[1:])):
-        raise _invalid("A released {} follows one that is not: the base comes before the horizon.".format(what))
+def _base_first(nodes, edges):
+    """Section 6.6.1: after an unreleased node or edge, nothing released follows (in their one sequence)."""
+    sequence = [nodes[0]] + [part for pair in zip(edges, nodes[1:]) for part in pair]
+    for earlier, later in zip(sequence, sequence[1:]):
+        if later["released"] and not earlier["released"]:
+            what, key = ("node", "nodeId") if "nodeId" in later else ("edge", "edgeId")
+            raise _invalid("Released {} {} follows one that is not: the base comes before the horizon.".format(
+                what, later[key]), [(key, later[key])])
 
 
 def _invalid(description, references=()):
@@ -190,25 +203,26 @@ def unsupported(order):
         raise Refusal("orderError", "This robot plans its own path: edges with a trajectory are not taken.", curved)
 
 
-def stops_of(nodes, map_id, waypoint_names):
+def stops_of(nodes, map_id, waypoints):
     """The nodes to drive to, as :class:`Stop` s: a ``nodePosition`` on ``map_id`` (Refusal orderError on
-    another map), else the waypoint called ``nodeId`` (Refusal orderError when there is none)."""
+    another map), else the waypoint called ``nodeId`` (``waypoints``: name → Pose2D; Refusal orderError
+    when there is none)."""
     stops, previous = [], None
     for node in nodes:
         position = node.get("nodePosition")
         if position is None:
-            if node["nodeId"] not in waypoint_names:
+            if node["nodeId"] not in waypoints:
                 raise Refusal("orderError", "Node {} has no nodePosition, and no waypoint of map {} is called so."
                               .format(node["nodeId"], map_id), [("nodeId", node["nodeId"])])
-            pose = None
+            pose, previous = None, waypoints[node["nodeId"]]
         else:
             if position["mapId"] != map_id:
                 raise Refusal("orderError", "Node {} is on map {}, but the robot navigates on {}.".format(
                     node["nodeId"], position["mapId"], map_id), [("nodeId", node["nodeId"]),
                                                                 ("mapId", position["mapId"])])
             pose = Pose2D(float(position["x"]), float(position["y"]), _theta(position, previous))
+            previous = pose
         stops.append(Stop(node["nodeId"], node["sequenceId"], pose))
-        previous = position
     return stops
 
 
@@ -216,9 +230,9 @@ def _theta(position, previous):
     """The node's theta, or else the heading from the node before (the robot may turn freely there)."""
     if "theta" in position:
         return float(position["theta"])
-    if previous is not None:
-        return math.atan2(position["y"] - previous["y"], position["x"] - previous["x"])
-    return 0.0
+    if previous is not None and (position["x"], position["y"]) != (previous.x, previous.y):
+        return math.atan2(position["y"] - previous.y, position["x"] - previous.x)
+    return previous.yaw if previous is not None else 0.0
 
 
 def within_reach(node, here, waypoint_pose):
@@ -290,8 +304,15 @@ class OrderBook:
 
     def take(self, order, kind):
         """Keep ``order`` as ``kind`` decided; the released nodes it adds to drive to (its first node, the
-        robot's place or the stitching node, is never one)."""
+        robot's place or the stitching node, is never one). Refusal (orderError) when the nodes left to do
+        would be more than MAX_NODES (an update piling base on base faster than the robot drives)."""
         nodes, edges = [dict(n) for n in order["nodes"]], [dict(e) for e in order["edges"]]
+        if kind == UPDATE and self.busy:
+            left = len([n for n in self.nodes if n["released"]]) + len(nodes) - 1
+            if left > MAX_NODES:
+                raise Refusal("orderError", "With this update the robot would have {} nodes to do, more than the "
+                              "{} it keeps: send more once it has driven some.".format(left, MAX_NODES),
+                              [("orderId", order["orderId"]), ("orderUpdateId", order["orderUpdateId"])])
         self.order_id, self.update_id = order["orderId"], order["orderUpdateId"]
         if kind == NEW or not self.busy:
             self.nodes, self.edges = nodes, edges
@@ -313,6 +334,15 @@ class OrderBook:
 
     def copy(self):
         return copy.deepcopy(self)
+
+    def caught_up(self, newer):
+        """This book (a copy kept before an update that could not start) with what ``newer`` saw the
+        robot do since: the nodes passed, or the order dropped. Returns self."""
+        if not newer.busy:
+            self.drop()
+        elif newer.order_id == self.order_id and newer.last_node_seq > self.last_node_seq:
+            self.passed(newer.last_node_seq, newer.last_node_id)
+        return self
 
     def node_states(self):
         return [_node_state(n) for n in self.nodes]
