@@ -35,6 +35,7 @@ BENCHMARKS = [
     ("events", "bench_events.py", ["--rest-seconds", "3", "--drive-seconds", "5", "--stops", "3"]),
     ("mqtt", "bench_mqtt.py", ["--commands", "30", "--settle", "5", "--cpu-seconds", "10", "--cpu-repeat", "1",
                                "--floods", "2"]),
+    ("vda5050", "bench_vda5050.py", ["--orders", "20", "--settle", "5", "--cpu-seconds", "10", "--cpu-repeat", "1"]),
     ("page", "bench_page.py", ["--loads", "3"]),
     ("page_silence", "bench_page_silence.py", ["--stalls", "2"]),
     ("scan", "bench_scan.py", ["--seconds", "4", "--repeat", "500"]),

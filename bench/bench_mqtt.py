@@ -90,15 +90,18 @@ class NodelayBroker(Broker):
 
 
 class Sim(ServerProcess):
-    """``flask-move-server --sim`` (speed factor 1, its own ROS master), MQTT on ``broker`` or off."""
+    """``flask-move-server --sim`` (speed factor 1, its own ROS master), MQTT on ``broker`` or off.
 
-    def __init__(self, home, broker=None):
+    ``name``: the robot's (``mdns.hostname``: its MQTT topics and client id, so several servers can
+    share a broker); ``extra``: more lines of the ``mqtt:`` section (indented two spaces)."""
+
+    def __init__(self, home, broker=None, name="robot", extra=""):
         home.mkdir(parents=True, exist_ok=True)
         waypoints = home / "waypoints.yaml"
         shutil.copy(os.path.join(ROOT, "config", "waypoints.demo.yaml"), str(waypoints))
         config = home / "sim.yaml"
-        config.write_text("mqtt:\n  enabled: {}\n  host: 127.0.0.1\n  port: {}\n".format(
-            "true" if broker else "false", broker.port if broker else 1883))
+        config.write_text("mdns:\n  hostname: {}\nmqtt:\n  enabled: {}\n  host: 127.0.0.1\n  port: {}\n{}".format(
+            name, "true" if broker else "false", broker.port if broker else 1883, extra))
         self.master_uri = "http://127.0.0.1:{}".format(free_port())
         env = {"ROS_MASTER_URI": self.master_uri, "ROS_HOME": str(home), "ROS_LOG_DIR": str(home / "log"),
                "ROS_IP": "127.0.0.1"}
@@ -219,8 +222,9 @@ def thread_cpu(pid):
     return out
 
 
-def mqtt_tids(pid):
-    """The OS thread ids of the server's MQTT threads, named by ``py-spy dump``; {} without py-spy."""
+def mqtt_tids(pid, prefixes=MQTT_THREADS):
+    """The OS thread ids of the server's threads named ``prefixes`` (its MQTT threads), named by
+    ``py-spy dump``; {} without py-spy."""
     spy = shutil.which("py-spy") or os.path.join(os.path.dirname(sys.executable), "py-spy")
     if not os.path.exists(spy):
         return {}
@@ -231,7 +235,7 @@ def mqtt_tids(pid):
     tids = {}
     for m in re.finditer(r'^Thread (0x[0-9A-Fa-f]+|\d+) \([^)]*\): "([^"]+)"', dump, re.M):
         name = m.group(2)
-        if name.startswith(MQTT_THREADS):
+        if name.startswith(prefixes):
             ident = m.group(1)
             tids[int(ident, 16) if ident.startswith("0x") else int(ident)] = name
     return tids
