@@ -37,10 +37,10 @@ setup(
         "zeroconf>=0.47",
         "ifaddr>=0.1.7",  # zeroconf's own dependency; lan/mdns.py polls the interfaces with it
         "pyserial>=3.4",
-        "numpy>=1.17",
-        # mqtt/: Home Assistant and VDA 5050 (off by default). Debian bookworm's 1.6.1 and PyPI's 2.x
-        # (mqtt/paho_compat.py bridges their callback APIs).
-        "paho-mqtt>=1.5",  # explore/: frontiers and reachability, vectorised (Debian's python3-numpy; 1.17 on Noetic)
+        "numpy>=1.17",  # explore/: frontiers and reachability, vectorised (Debian's python3-numpy; 1.17 on Noetic)
+        # mqtt/ and vda5050/: Home Assistant and fleet managers (off by default). Debian bookworm's 1.6.1
+        # and PyPI's 2.x (mqtt/paho_compat.py bridges their callback APIs).
+        "paho-mqtt>=1.5",
     ],
     extras_require={
         "test": ["pytest>=7", "pytest-timeout>=2", "pytest-xdist>=2.5", "hypothesis>=6", "ruff>=0.4", "vermin>=1.5",
