@@ -62,6 +62,9 @@ class SimServer(ServerProcess):
                          "--waypoints", os.path.join(home, "waypoints.yaml"), env=env, start_timeout=60)
         self.port = int(self.url.rsplit(":", 1)[1])
         wait_for(lambda: self.call("GET", "/health")[1].get("move_base") == "ready", timeout=30)
+        # move_base can be ready before the sim's first tf map -> base_link: no pose to drive from yet
+        wait_for(lambda: self.call("GET", "/status")[1]["pose"] is not None, timeout=30,
+                 message="a pose from tf map -> base_link")
 
     def call(self, method, path, body=None, timeout=10):
         """One request on a fresh connection (as curl or the phone would); (status, JSON, seconds)."""

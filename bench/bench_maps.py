@@ -19,6 +19,7 @@ Prints a markdown table (docs/performance.md, section Maps).
 import argparse
 import os
 import random
+import shutil
 import statistics
 import sys
 import tempfile
@@ -31,6 +32,7 @@ from flask_move_server.maps import mapfile, render  # noqa: E402
 from flask_move_server.maps.catalogue import MapCatalogue  # noqa: E402
 from flask_move_server.maps.service import MapService  # noqa: E402
 from flask_move_server.maps.wire import decode  # noqa: E402
+from flask_move_server.waypoints.store import WaypointStore  # noqa: E402
 
 SIZE, RESOLUTION = 4000, 0.05
 FLAT_COL, FLAT_ROW, FLAT_W, FLAT_H = 1900, 1850, 600, 400
@@ -137,13 +139,6 @@ class LiveMap:
         return self.version, decode(self.raw)[1]
 
 
-class _Store:
-    path = "/dev/null"
-
-    def when_changed(self, callback):
-        pass
-
-
 def live_rows(grid, repeat):
     """The live map: decode (ours vs genpy), MapService's first image and its repeat."""
     from nav_msgs.msg import OccupancyGrid
@@ -155,8 +150,11 @@ def live_rows(grid, repeat):
     med, top, _ = timed(lambda: OccupancyGrid().deserialize(raw), 3)
     rows.append(("genpy OccupancyGrid.deserialize, for comparison (int tuple)", med, top))
 
+    folder = tempfile.mkdtemp(prefix="bench-maps-")  # the server's own layout: maps/ beside the waypoints
+    store = WaypointStore(os.path.join(folder, "waypoints.yaml"))
+
     def first_image():
-        service = MapService(MapCatalogue(tempfile.gettempdir()), _Store(), LiveMap(raw))
+        service = MapService(MapCatalogue(os.path.join(folder, "maps")), store, LiveMap(raw))
         return service, service.live_image()
 
     med, top, (service, _) = timed(first_image, repeat)
@@ -165,6 +163,7 @@ def live_rows(grid, repeat):
     rows.append(("GET /map/image, repeat (cached by version)", med, top))
     med, top, _ = timed(service.live_etag, repeat)
     rows.append(("GET /map/image with If-None-Match: the ETag check (304)", med, top))
+    shutil.rmtree(folder, ignore_errors=True)
     return rows
 
 

@@ -20,6 +20,10 @@ sys.path.insert(0, ROOT)
 
 from tests.conftest import free_port, start_master, stop_process, wait_for  # noqa: E402
 
+# This process runs move_base (an outside stack, as on a robot whose launch file starts it): without
+# ``stack: none`` the server starts in its idle mode and never asks move_base for goals.
+OUR_CONFIG = "modes: {stack: none}\n"
+
 
 class MoveBase:
     """A real actionlib move_base in this process, so the server runs as it does on the robot."""
@@ -104,9 +108,12 @@ def main():
         rospy.init_node("bench", disable_signals=True)
         MoveBase("move_base")
         waypoints = os.path.join(home, "waypoints.yaml")
+        config = os.path.join(home, "robot.yaml")
+        with open(config, "w") as f:
+            f.write(OUR_CONFIG)
         ours, host, our_port, started = start_server(
-            [sys.executable, "-m", "flask_move_server", "--host", "127.0.0.1", "--port", "0", "--no-mdns",
-             "--waypoints", waypoints], env)
+            [sys.executable, "-m", "flask_move_server", "--config", config, "--host", "127.0.0.1", "--port", "0",
+             "--no-mdns", "--waypoints", waypoints], env)
         procs.append(ours)
         conn = http.client.HTTPConnection(host, our_port, timeout=10)
         wait_for(lambda: request(conn, "GET", "/health")[0] == 200, timeout=10, interval=0.005)
