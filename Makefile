@@ -35,7 +35,7 @@ DEBIAN_PY_DEBS := python3-flask python3-waitress python3-yaml python3-requests p
 	python3-serial python3-paho-mqtt python3-pytest python3-pytest-timeout python3-pytest-xdist \
 	python3-hypothesis python3-setuptools python3-jsonschema
 
-.PHONY: setup test lint pytest test-debian run demo bench clean
+.PHONY: setup test lint pytest test-debian run demo bench bench-smoke bench-guard clean
 
 setup: $(VENV)/.installed
 
@@ -138,6 +138,15 @@ demo: $(VENV)/.server
 
 bench: setup
 	$(PY) -m bench
+
+# CI's two looks at the benchmarks (docs/performance.md, "Benchmarks in CI"): every benchmark once
+# with its smallest counts, failing one that does not finish or prints no table; and the
+# concurrency guard, 8 clients against 1 in one run (a ratio, not a time) and /stop while they poll.
+bench-smoke: setup
+	$(PY) -m bench --smoke
+
+bench-guard: setup
+	$(PY) bench/bench_concurrency.py --guard
 
 clean:
 	rm -rf $(VENV) $(DEBIAN_VENV) build *.egg-info .pytest_cache .ruff_cache $(VDA_MASTER)/node_modules

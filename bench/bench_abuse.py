@@ -189,6 +189,8 @@ def stop_during_put_storm(server, clients, seconds, rounds):
 
 def row(name, values):
     answered = [v for v in values if v is not None]
+    if not values:  # a storm too short for one /stop
+        return "| {} | 0 | – | – | – |".format(name)
     if len(answered) < len(values):
         return "| {} | {} | no answer within 10 s | | |".format(name, len(values))
     return "| {} | {} | {:.1f} | {:.1f} | {:.1f} |".format(
