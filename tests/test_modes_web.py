@@ -246,3 +246,30 @@ def test_mode_and_the_maps_list_name_the_configured_map_alike(sim_like, stack):
     assert client.get("/waypoints").get_json()["waypoints"] == places
     assert stack.starts()[-1] == ("navigation", None)
 
+
+def test_saving_with_then_and_wait_answers_once_navigation_runs_on_the_new_map(sim_like, stack):
+    """The README's mapping block pasted whole: the next line's /goto must find navigation running."""
+    client = sim_like.client
+    assert client.post("/mode", json={"mode": "mapping", "wait": 5}).status_code == 200
+    r = client.post("/maps", json={"name": "flat", "then": "navigation", "wait": 5})
+    assert r.status_code == 201
+    assert (r.get_json()["mode"]["map"], r.get_json()["mode"]["state"]) == ("flat", "running")
+    assert sim_like.said() == ("navigation", "flat", "flat")
+    assert client.post("/mode", json={"mode": "mapping", "wait": 5}).status_code == 200
+    stack.gate.clear()  # the next start hangs: the wait ends first, the map is saved all the same
+    try:
+        r = client.post("/maps", json={"name": "flat2", "then": "navigation", "wait": 0.1})
+        assert r.status_code == 201 and r.get_json()["mode"]["state"] == "starting"
+    finally:
+        stack.gate.set()
+    assert client.get("/maps/flat2").status_code == 200
+
+
+def test_a_save_waits_only_for_the_switch_it_asks_for(sim_like):
+    client = sim_like.client
+    assert client.post("/mode", json={"mode": "mapping", "wait": 5}).status_code == 200
+    for body in ({"name": "flat", "wait": 5}, {"name": "flat", "then": "navigation", "wait": -1},
+                 {"name": "flat", "then": "navigation", "wait": "soon"}):
+        r = client.post("/maps", json=body)
+        assert r.status_code == 400 and "'wait'" in r.get_json()["message"], body
+    assert client.get("/maps").get_json()["maps"][1:] == []  # nothing saved
