@@ -207,7 +207,7 @@ class SimLike:
         from flask_move_server.maps.service import MapService
 
         robot_config.sim.enabled, robot_config.modes.stack = True, "sim"
-        events = EventBus()
+        self.events = events = EventBus()
         self.modes = ModeManager(robot_config, stack, events, relocalize=poses.append)
         maps = MapService(MapCatalogue(robot_config.maps_folder()), store, source, modes=self.modes, events=events,
                           configured=configured.of_config(robot_config))
@@ -237,6 +237,7 @@ def test_mode_and_the_maps_list_name_the_configured_map_alike(sim_like, stack):
     and its places are the waypoints file's, whether the robot started on it or came back to it."""
     client = sim_like.client
     assert sim_like.said() == ("navigation", "demo", "demo")
+    assert sim_like.events.latest("waypoints")["map"] == "demo"  # as a stream opened now is told
     places = client.get("/waypoints").get_json()["waypoints"]
     assert places and stack.starts() == [("navigation", None)]  # the stack's own map, as always
     assert client.post("/mode", json={"mode": "mapping", "wait": 5}).status_code == 200

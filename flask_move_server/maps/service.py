@@ -121,8 +121,11 @@ class MapService:
             path = self.marks.path
         else:
             path = self.single_file
+        renamed = name != self.waypoints_map and os.path.abspath(path) == self.store.path
         self._following, self.waypoints_map = mode, name
         self.store.use_file(path)
+        if renamed:  # the same file under another name (the configured map's, or null): said all the same
+            self._waypoints_changed(self.store.version)
 
     def _start_marks(self):
         try:
