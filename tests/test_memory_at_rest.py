@@ -10,6 +10,8 @@ import os
 import subprocess
 import sys
 
+import pytest
+
 from tests.conftest import ROOT, free_port
 
 HEAVY = ("numpy", "paho", "jsonschema", "zeroconf")
@@ -28,7 +30,7 @@ server.close()
 
 GENPY = """
 import json, sys
-import flask_move_server.ros
+import flask_move_server
 import genpy.message
 from genpy.message import SerializationError, check_type
 
@@ -64,3 +66,10 @@ def test_the_server_with_no_motors_and_no_mqtt_loads_no_numpy_paho_jsonschema_or
 def test_ros_messages_load_without_numpy_and_accept_numpy_floats_once_it_is_loaded(tmp_path):
     result = run(tmp_path, GENPY)
     assert result == {"numpy_with_genpy": False, "refused": True}
+
+
+@pytest.mark.parametrize("module", ["flask_move_server.drive.messages", "flask_move_server.sim.world",
+                                    "flask_move_server.ros.navigator"])
+def test_whichever_of_the_servers_modules_imports_rospy_first_numpy_stays_unloaded(tmp_path, module):
+    program = "import json, sys, {}; print(json.dumps(['rospy' in sys.modules, 'numpy' in sys.modules]))"
+    assert run(tmp_path, program.format(module)) == [True, False]

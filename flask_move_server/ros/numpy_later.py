@@ -6,8 +6,8 @@ names the bad field once serialising a message has failed. The server has no use
 it explores (``explore/frontiers.py``), yet numpy is a fifth of its memory. :func:`install` has
 ``genpy.message`` loaded with numpy out of sight (only when numpy is not loaded yet), and gives it a
 list of float types that holds numpy's as soon as numpy is loaded, so what genpy accepts and what
-it says are as before. Installed by ``flask_move_server.ros``'s import, before any of its modules
-imports rospy; does nothing where genpy was loaded earlier.
+it says are as before. Installed by ``flask_move_server``'s import, before any of its modules
+imports rospy (whichever does first); does nothing where genpy was loaded earlier.
 """
 
 import importlib.abc
