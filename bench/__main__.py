@@ -18,6 +18,7 @@ TIMEOUT = 600  # s: a benchmark that hangs is killed (subprocess.call kills it) 
 # (name, script, short-run options): the order is cheapest first, so a broken setup fails early.
 BENCHMARKS = [
     ("server", "bench_server.py", ["--seconds", "2", "--idle", "3"]),
+    ("rss", "bench_rss.py", ["--repeat", "1", "--settle", "2"]),
     ("concurrency", "bench_concurrency.py", ["--seconds", "2", "--clients", "1,8"]),
     ("goals", "bench_goals.py", ["--goals", "30", "--burst", "100", "--stages"]),
     ("runs", "bench_runs.py", ["--loops", "30"]),
