@@ -5,7 +5,7 @@ goal id, reading the clock twice) and its tracking (a state machine, with a stat
 a time stamp of its own, and a lock), and only then publishes the goal. On a ``/goto`` that put a
 few dozen microseconds of object building between the request and move_base
 (``bench/bench_goals.py --stages``). :func:`publish_goals_first` makes ``action_client`` fill in
-an action goal built after the previous goal was sent, read the clock once for its stamp and id,
+an action goal built after the previous goal's request was done, read the clock once for its stamp and id,
 publish it, and build the same tracking just after. Both the publish and the tracking happen
 while actionlib's list lock is held, the lock its status, feedback and result callbacks take
 first, so move_base's first word on the goal still finds it tracked, exactly as before. Goal ids
@@ -20,14 +20,23 @@ from actionlib.action_client import ClientGoalHandle, CommStateMachine
 
 
 def publish_goals_first(action_client):
-    """Make ``action_client`` (an ``actionlib.ActionClient``) send goals as described above."""
+    """Make ``action_client`` (an ``actionlib.ActionClient``) send goals as described above.
+
+    Returns ``build_next()``, which builds the next goal's action goal: call it once a goal is on
+    its way and the request's other work is done (a goal sent without one builds its own).
+    """
     manager = action_client.manager
-    spare = [manager.ActionGoal()]  # the next goal's action goal, built once the one before is on its way
+    spare = [manager.ActionGoal()]  # the next goal's action goal
 
     def init_goal(goal, transition_cb=None, feedback_cb=None):
         return _init_goal(manager, spare, goal, transition_cb, feedback_cb)
 
+    def build_next():
+        if not spare:
+            spare.append(manager.ActionGoal())
+
     manager.init_goal = init_goal
+    return build_next
 
 
 def _init_goal(manager, spare, goal, transition_cb, feedback_cb):
@@ -44,7 +53,6 @@ def _init_goal(manager, spare, goal, transition_cb, feedback_cb):
         manager.send_goal_fn(action_goal)
         tracking = CommStateMachine(action_goal, transition_cb, feedback_cb, manager.send_goal_fn, manager.cancel_fn)
         manager.statuses.append(weakref.ref(tracking))
-    spare.append(manager.ActionGoal())
     return ClientGoalHandle(tracking)
 
 

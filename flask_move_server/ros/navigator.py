@@ -81,6 +81,7 @@ class Navigator:
         self._cancel_pub = None
         self._direct = []  # action mode: the goal and cancel publishers actionlib's share
         self._spare_message = None  # the next goal's MoveBaseGoal, built ahead
+        self._build_next_goal = None  # goal_first's: the next goal's action goal, built ahead
         self._released = False
         self._unacknowledged = None  # (seq, sent at) of a goal move_base has not answered yet
         self._ack_watch = None
@@ -100,7 +101,7 @@ class Navigator:
                             direct_publisher(action + "/cancel", GoalID, 10)]
             client = actionlib.SimpleActionClient(self._config.action, MoveBaseAction)
             read_status_lightly(client.action_client)  # move_base's status array: only our goal's entry
-            publish_goals_first(client.action_client)
+            self._build_next_goal = publish_goals_first(client.action_client)
             self._readiness = ServerReadiness(client.action_client)
             self._spare_message = MoveBaseGoal()
             self._client = client
@@ -147,7 +148,6 @@ class Navigator:
                         active_cb=lambda: self._acknowledged(seq),
                         feedback_cb=lambda feedback: self._feedback(seq, feedback),
                     )
-                    self._spare_message = MoveBaseGoal()  # the next goal's, built once this one is on its way
                 else:
                     self._goal_pub.publish(pose_stamped(goal.pose, self._frame, rospy.Time.now()))
         finally:
@@ -155,7 +155,16 @@ class Navigator:
         self._goal_lines.info("goal %d: %s %s", seq, goal.target or "pose", goal.pose.as_dict())
         if self.trips is not None:
             self.trips.started(goal)
+        self._build_ahead()
         return seq
+
+    def _build_ahead(self):
+        """The next goal's messages, built last: once this goal is on its way, and after the work that
+        follows it, so that move_base's reader, woken by the goal, does not wait for a core behind them."""
+        build_next_goal = self._build_next_goal
+        if build_next_goal is not None:
+            self._spare_message = MoveBaseGoal()
+            build_next_goal()
 
     def _expect_acknowledgement(self, seq):
         """Lock held, goal ``seq`` about to be sent: the watch gives it up unless move_base answers in time."""
