@@ -117,15 +117,18 @@ run: $(VENV)/.server
 	$(VENV)/bin/flask-move-server --host 127.0.0.1 --waypoints $(RUN_WAYPOINTS)
 
 # The simulated robot on the demo flat (make demo): its own ROS master, world and move_base stand-in.
-# Waypoints are copied once to build/demo/, so PUT /waypoints never edits the shipped file.
+# Waypoints are copied once to the demo's folder, so PUT /waypoints never edits the shipped file; the
+# server keeps mode.json, maps/ and runs there too. Each port is its own robot: build/demo on 5000,
+# build/demo-PORT on another, so a second demo beside the first (DEMO_PORT=5001) shares none of its state.
 DEMO_PORT ?= 5000
 DEMO_URL := http://127.0.0.1:$(DEMO_PORT)
-DEMO_WAYPOINTS ?= build/demo/waypoints.yaml
+DEMO_DIR ?= build/demo$(if $(filter 5000,$(DEMO_PORT)),,-$(DEMO_PORT))
+DEMO_WAYPOINTS ?= $(DEMO_DIR)/waypoints.yaml
 
 demo: $(VENV)/.server
 	@mkdir -p $(dir $(DEMO_WAYPOINTS))
 	@test -f $(DEMO_WAYPOINTS) || cp config/waypoints.demo.yaml $(DEMO_WAYPOINTS)
-	@echo "Simulated robot on $(DEMO_URL) (Ctrl-C stops it). Open $(DEMO_URL)/ in a browser for the phone page."
+	@echo "Simulated robot on $(DEMO_URL) (Ctrl-C stops it), its state in $(dir $(DEMO_WAYPOINTS)). Open $(DEMO_URL)/ in a browser for the phone page."
 	@echo "In another terminal, try:"
 	@echo "  curl $(DEMO_URL)/waypoints"
 	@echo "  curl -d '{\"name\": \"kitchen\"}' $(DEMO_URL)/goto"

@@ -30,6 +30,7 @@ SMOKE_TIMEOUT = 180  # s: the same for a smoke run, which takes seconds
 # fails early. The smoke options are each benchmark's smallest counts: every part of it runs, once.
 BENCHMARKS = [
     ("server", "bench_server.py", ["--seconds", "2", "--idle", "3"], ["--seconds", "0.5", "--idle", "0.5"]),
+    ("rss", "bench_rss.py", ["--repeat", "1", "--settle", "2"], ["--repeat", "1", "--settle", "0"]),
     ("concurrency", "bench_concurrency.py", ["--seconds", "2", "--clients", "1,8"],
      ["--seconds", "0.5", "--clients", "1,2"]),
     ("goals", "bench_goals.py", ["--goals", "30", "--burst", "100", "--stages"],

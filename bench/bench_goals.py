@@ -15,8 +15,10 @@ twice each in alternation so drift of the machine's load hits both alike.
 Run: ``.venv/bin/python bench/bench_goals.py [--goals N] [--burst N]``; ``--profile FILE``
 samples the server with py-spy (``pip install py-spy``) during the goals and writes its raw
 (collapsed) stacks to FILE; ``--stages`` runs both servers under ``bench/stages.py`` and prints a
-second table: where each goal's time goes, stage by stage (medians). Starts its own ROS master.
-Prints one markdown table (two with ``--stages``).
+second table: where each goal's time goes, stage by stage (medians); ``--compare DIR`` runs the server
+of another checkout (``git worktree add DIR REV``) as a third, in the same run and in turn with the
+others, so a change is measured against what it replaced. Starts its own ROS master. Prints one
+markdown table (two with ``--stages``).
 """
 
 import argparse
@@ -39,8 +41,9 @@ from tests.conftest import free_port, start_master, stop_process, wait_for  # no
 
 OUR_CONFIG = """\
 server: {{host: 127.0.0.1, port: 0}}
+ros: {{node_name: {node}}}
 waypoints: {{file: {waypoints}}}
-navigation: {{goal_interface: action, action: move_base}}
+navigation: {{goal_interface: action, action: {action}}}
 drive: {{backend: none}}
 modes: {{stack: none}}  # this bench runs move_base itself (the stand-in), as an outside stack
 """
@@ -83,9 +86,10 @@ class StandIn:
 class Server:
     """One HTTP server under test: its process, a keep-alive connection, the action it feeds."""
 
-    def __init__(self, name, args, env, action, log_path):
+    def __init__(self, name, args, env, action, log_path, cwd=None):
         self.name, self.action = name, action
-        self.proc = subprocess.Popen(args, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, env=env, text=True)
+        self.proc = subprocess.Popen(args, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, env=env, text=True,
+                                     cwd=cwd)
         for line in self.proc.stderr:
             if "serving the API on http://" in line or "bare server on http://" in line:
                 self.host, port = line.split("http://")[1].split()[0].split(":")
@@ -117,22 +121,30 @@ class Server:
         self.sent.append((x, started, (time.monotonic() - started) * 1000))
 
 
-def staged(args, out):
-    """``args`` (a Python script, or ``-m module``, and its arguments) under bench/stages.py writing to ``out``."""
-    return [sys.executable, os.path.join(ROOT, "bench", "stages.py"), out] + args
+def staged(args, out, root=ROOT):
+    """``args`` (a Python script, or ``-m module``, and its arguments) under bench/stages.py writing to
+    ``out``, the server's package from the checkout ``root``."""
+    return [sys.executable, os.path.join(ROOT, "bench", "stages.py"), out, "--root", root] + args
 
 
-def start_ours(home, env, stages):
+def start_ours(home, env, stages, root=ROOT, name="flask-move-server", action="move_base", node="flask_move_server"):
+    """flask-move-server from the checkout ``root`` as ROS node ``node``, its files in ``home``, feeding ``action``."""
+    os.makedirs(home, exist_ok=True)
     config = os.path.join(home, "robot.yaml")
     with open(config, "w") as f:
-        f.write(OUR_CONFIG.format(waypoints=os.path.join(home, "waypoints.yaml")))
+        f.write(OUR_CONFIG.format(waypoints=os.path.join(home, "waypoints.yaml"), action=action,
+                                  node=node))
     exe = os.path.join(os.path.dirname(sys.executable), "flask-move-server")
-    args = [exe] if os.path.exists(exe) and not stages else [sys.executable, "-m", "flask_move_server"]
+    mine = root == ROOT
+    args = [exe] if os.path.exists(exe) and mine and not stages else [sys.executable, "-m", "flask_move_server"]
+    stages_file = os.path.join(home, "stages-ours.json")
     if stages:
-        args = staged(args[1:], os.path.join(home, "stages-ours.json"))
-    ours = Server("flask-move-server", args + ["--config", config, "--no-mdns"], env, "move_base",
-                  os.path.join(home, "flask-move-server.log"))
-    ours.stages = os.path.join(home, "stages-ours.json") if stages else None
+        args = staged(args[1:], stages_file, root)
+    elif not mine:
+        env = dict(env, PYTHONPATH=root)
+    ours = Server(name, args + ["--config", config, "--no-mdns"], env, action,
+                  os.path.join(home, "flask-move-server.log"), cwd=root)
+    ours.stages = stages_file if stages else None
     wait_for(lambda: json.loads(ours.request("GET", "/health")[1]).get("move_base") == "ready", timeout=30,
              message="flask-move-server's /health to say move_base is ready")
     return ours
@@ -281,6 +293,7 @@ def main(argv=None):
     parser.add_argument("--burst", type=int, default=200, help="goals to each server at each burst rate")
     parser.add_argument("--profile", metavar="FILE", help="py-spy's raw stacks of the server during the goals")
     parser.add_argument("--stages", action="store_true", help="also time each stage of a goal's way (bench/stages.py)")
+    parser.add_argument("--compare", metavar="DIR", help="another checkout's server, measured in the same run")
     opts = parser.parse_args(argv)
 
     home = tempfile.mkdtemp(prefix="bench-goals-")
@@ -289,10 +302,17 @@ def main(argv=None):
     master = start_master(port, env)
     procs = []
     try:
-        standin = StandIn(env, ["move_base", "bare/move_base"])
+        standin = StandIn(env, ["move_base", "bare/move_base", "before/move_base"])
         procs.append(standin.proc)
         ours = start_ours(home, env, opts.stages)
         procs.append(ours.proc)
+        servers = [ours]
+        if opts.compare:
+            root = os.path.abspath(opts.compare)
+            before = start_ours(os.path.join(home, "compare"), env, opts.stages, root, os.path.basename(root),
+                                "before/move_base", "flask_move_server_before")
+            procs.append(before.proc)
+            servers.append(before)
         bare_args = [os.path.join(ROOT, "bench", "bare_server.py")]
         bare_stages = os.path.join(home, "stages-bare.json")
         bare_command = staged(bare_args, bare_stages) if opts.stages else [sys.executable] + bare_args
@@ -301,14 +321,15 @@ def main(argv=None):
         procs.append(bare.proc)
         time.sleep(2)  # the bare publisher's connection to the stand-in's goal subscriber
         profiler = start_profiler(ours.proc.pid, opts.profile) if opts.profile else None
-        rows = measure([ours, bare], standin, opts)
+        servers.append(bare)
+        rows = measure(servers, standin, opts)
         if profiler is not None:
             profiler.send_signal(2)
             profiler.wait(30)
         print_table(rows)
         if opts.stages:
             print()
-            print_stages([ours, bare])
+            print_stages(servers)
         print("\n(the servers' stderr: {})".format(home), file=sys.stderr)
     finally:
         for proc in reversed(procs):

@@ -1,9 +1,11 @@
 """Run an HTTP server with a timestamp at each stage of a goal's way; SIGUSR1 writes them out.
 
-``python bench/stages.py OUT.json -m flask_move_server --config …`` or ``… OUT.json bench/bare_server.py``.
+``python bench/stages.py OUT.json [--root DIR] -m flask_move_server --config …`` or ``… OUT.json bench/bare_server.py``;
+``--root DIR``: the server's package from the checkout in DIR (``bench_goals.py --compare``), else from this one.
 The stages, each taken where the server's own code (or waitress's, Flask's, rospy's) enters it:
 
-- ``read``: waitress's event loop has bytes of the request (``HTTPChannel.received``)
+- ``read``: waitress's event loop has bytes of the request (``HTTPChannel.received``, or our
+  ``RobotChannel.received``, which parses without calling it)
 - ``worker``: a worker thread starts the request (``WSGITask.service``)
 - ``route``: Flask has matched it and run the ``before_request`` checks (``Flask.dispatch_request``)
 - ``publish``: the goal message is handed to rospy (``Publisher.publish`` on a ``…/goal`` topic)
@@ -21,7 +23,7 @@ import signal
 import sys
 import time
 
-sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
 STAGES = ("read", "worker", "route", "publish", "socket")
 _records = []
@@ -56,14 +58,21 @@ def install():
     _timed(rospy.topics.Publisher, "publish", "publish", lambda pub: pub.resolved_name.endswith("/goal"))
     _timed(rospy.impl.tcpros_base.TCPROSTransport, "write_data", "socket", _to_goal_topic)
     try:
+        from flask_move_server.http.connection import RobotChannel
         from flask_move_server.ros.direct import DirectConnection
-    except ImportError:  # the bare server's environment may lack it: nothing of ours to time there
+    except ImportError:  # the bare server's environment may lack them: nothing of ours to time there
         return
+    if "received" in vars(RobotChannel):
+        _timed(RobotChannel, "received", "read")
     _timed(DirectConnection, "write_data", "socket", _to_goal_topic)
 
 
 def main():
     out, command = sys.argv[1], sys.argv[2:]
+    root = ROOT
+    if command[0] == "--root":
+        root, command = os.path.abspath(command[1]), command[2:]
+    sys.path.insert(0, root)
     install()
     signal.signal(signal.SIGUSR1, lambda *_: _write(out))
     if command[0] == "-m":

@@ -12,6 +12,8 @@ import time
 
 import pytest
 
+from tests import overload
+
 # The real robot assembled on this process's rospy node: robot_config, robot, ready_robot,
 # move_base (scripted actionlib stand-in), store, app, client.
 pytest_plugins = ["tests.robot_fixtures"]
@@ -53,6 +55,30 @@ def pytest_xdist_make_scheduler(config, log):
             return lane_of(nodeid.split("::", 1)[0])
 
     return Lanes(config, log)
+
+
+def pytest_collection_modifyitems(config, items):
+    """On a machine overloaded when the run starts, each test's time limit (pytest-timeout) grows with the load."""
+    scale = overload.time_scale()
+    if scale <= 1.0 or not config.pluginmanager.hasplugin("timeout"):
+        return
+    default = float(config.getini("timeout") or 0)
+    for item in items:
+        own = item.get_closest_marker("timeout")
+        limit = own.args[0] if own is not None and own.args else default
+        if limit:
+            item.add_marker(pytest.mark.timeout(limit * scale), append=False)  # the closest: it wins
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_makereport(item, call):
+    """A failure on a loaded machine says so: the load, and what the sim servers' worlds logged of it."""
+    outcome = yield
+    report = outcome.get_result()
+    if report.failed:
+        why = overload.note()
+        if why:
+            report.sections.append(("machine overloaded?", why))
 
 
 def pytest_report_header(config):
@@ -216,6 +242,7 @@ class ServerProcess:
     def __init__(self, *args, env=None, start_timeout=30):
         self.proc = run_cli(*args, env=env)
         self.lines = []
+        overload.SERVERS.add(self)  # a failure reads the world's "machine overloaded" lines
         self._reader = threading.Thread(target=self._read, daemon=True)
         self._reader.start()
         match = wait_for(lambda: self.find(r"serving the API on (http://\S+)") or self.proc.poll() is not None,

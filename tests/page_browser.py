@@ -15,6 +15,7 @@ import shutil
 
 import requests
 
+from tests import overload
 from tests.conftest import ROOT, ServerProcess, SimReads, free_port, stop_process, wait_for
 
 CHROMIUM = "/usr/bin/chromium"
@@ -23,6 +24,7 @@ CHROMIUM_ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic"
 PHONE = {"viewport": {"width": 390, "height": 844}, "has_touch": True, "is_mobile": True, "device_scale_factor": 1}
 DESKTOP = {"viewport": {"width": 1280, "height": 800}}
 SPEED_FACTOR = 4.0
+DEFAULT_TIMEOUT = 30000  # ms: Playwright's own, for waits without a timeout of their own
 DEMO_WAYPOINTS = os.path.join(ROOT, "config", "waypoints.demo.yaml")
 # Pictures go to build/screenshots; PAGE_SCREENSHOTS=docs/images refreshes the ones docs/phone.md shows.
 IMAGES = os.path.join(ROOT, os.environ.get("PAGE_SCREENSHOTS", os.path.join("build", "screenshots")))
@@ -87,6 +89,7 @@ class Browser:
         question asked is kept in ``page.asked``. ``before(page)`` runs before the page loads (routes).
         """
         context = self.browser.new_context(**device)
+        context.set_default_timeout(DEFAULT_TIMEOUT * overload.time_scale())  # longer on a loaded machine
         self.contexts.append(context)
         page = context.new_page()
         page.asked = []

@@ -67,8 +67,8 @@ def test_the_configured_map_is_listed_described_drawn_and_never_renamed_or_delet
     demo = listed["maps"][0]
     assert (demo["name"], demo["source"], demo["waypoints"]) == ("demo", "configured", 5)
     assert demo["width"] > 0 and demo["resolution"] > 0
-    assert listed["active"] == "demo"  # --sim starts navigating on it: /mode says map null, the list names it
-    assert sim.get("/mode").json()["map"] is None
+    assert listed["active"] == "demo"  # --sim starts navigating on it: /mode and the list name it alike
+    assert sim.get("/mode").json()["map"] == "demo"
     assert sim.get("/maps/demo").json()["active"] is True
     image = sim.get("/maps/demo/image")
     assert image.status_code == 200 and image.content.startswith(b"\x89PNG")
@@ -108,7 +108,7 @@ def test_marks_while_mapping_go_with_the_map_made_and_the_configured_map_is_chos
     assert sim.waypoints.read_text() == demo_places  # the demo's own places: never written while mapping
 
     mode = switch(sim, {"mode": "navigation", "map": "demo"})
-    assert mode["map"] is None and mode["state"] == "running"
+    assert mode["map"] == "demo" and mode["state"] == "running"
     assert names(sim) == ["kitchen", "office", "bedroom", "sofa", "dock"]  # the demo's own places again
     assert sim.get("/maps").json()["active"] == "demo"
 

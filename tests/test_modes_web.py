@@ -195,3 +195,82 @@ def test_a_mode_that_cannot_be_remembered_is_said_by_post_and_get_mode(client, r
     body = client.post("/mode", json={"mode": "mapping", "wait": 5}).get_json()
     assert body["state"] == "running" and "not remembered for the next start" in body["message"]
     assert "not remembered for the next start" in client.get("/mode").get_json()["message"]
+
+
+
+class SimLike:
+    """A ``--sim``-configured app: the real mode manager on the stand-in stack, and the real map service."""
+
+    def __init__(self, robot_config, store, stack, poses, source=None):
+        from flask_move_server.maps import configured
+        from flask_move_server.maps.catalogue import MapCatalogue
+        from flask_move_server.maps.service import MapService
+
+        robot_config.sim.enabled, robot_config.modes.stack = True, "sim"
+        self.events = events = EventBus()
+        self.modes = ModeManager(robot_config, stack, events, relocalize=poses.append)
+        maps = MapService(MapCatalogue(robot_config.maps_folder()), store, source, modes=self.modes, events=events,
+                          configured=configured.of_config(robot_config))
+        self.client = create_app(robot_config, FakeRobot(), store, events=events, modes=self.modes,
+                                 maps=maps).test_client()
+        self.modes.restore()
+        assert self.modes.wait(5)
+
+    def said(self):
+        """What GET /mode and GET /maps (robotctl map list) say: mode, its map, the active map."""
+        mode = self.client.get("/mode").get_json()
+        return mode["mode"], mode["map"], self.client.get("/maps").get_json()["active"]
+
+
+@pytest.fixture
+def sim_like(robot_config, store, stack, poses):
+    from flask_move_server.maps.mapfile import Grid
+    from tests.fake_maps import FakeMapSource
+
+    app = SimLike(robot_config, store, stack, poses, FakeMapSource(Grid(4, 3, 0.05, -0.1, -0.1, bytes(12))))
+    yield app
+    app.modes.close()
+
+
+def test_mode_and_the_maps_list_name_the_configured_map_alike(sim_like, stack):
+    """``--sim`` navigates on its demo map: ``GET /mode`` names it as ``GET /maps`` (``robotctl map list``) does,
+    and its places are the waypoints file's, whether the robot started on it or came back to it."""
+    client = sim_like.client
+    assert sim_like.said() == ("navigation", "demo", "demo")
+    assert sim_like.events.latest("waypoints")["map"] == "demo"  # as a stream opened now is told
+    places = client.get("/waypoints").get_json()["waypoints"]
+    assert places and stack.starts() == [("navigation", None)]  # the stack's own map, as always
+    assert client.post("/mode", json={"mode": "mapping", "wait": 5}).status_code == 200
+    assert sim_like.said() == ("mapping", None, None)
+    assert client.post("/mode", json={"mode": "navigation", "map": "demo", "wait": 5}).status_code == 200
+    assert sim_like.said() == ("navigation", "demo", "demo")
+    assert client.get("/waypoints").get_json()["waypoints"] == places
+    assert stack.starts()[-1] == ("navigation", None)
+
+
+def test_saving_with_then_and_wait_answers_once_navigation_runs_on_the_new_map(sim_like, stack):
+    """The README's mapping block pasted whole: the next line's /goto must find navigation running."""
+    client = sim_like.client
+    assert client.post("/mode", json={"mode": "mapping", "wait": 5}).status_code == 200
+    r = client.post("/maps", json={"name": "flat", "then": "navigation", "wait": 5})
+    assert r.status_code == 201
+    assert (r.get_json()["mode"]["map"], r.get_json()["mode"]["state"]) == ("flat", "running")
+    assert sim_like.said() == ("navigation", "flat", "flat")
+    assert client.post("/mode", json={"mode": "mapping", "wait": 5}).status_code == 200
+    stack.gate.clear()  # the next start hangs: the wait ends first, the map is saved all the same
+    try:
+        r = client.post("/maps", json={"name": "flat2", "then": "navigation", "wait": 0.1})
+        assert r.status_code == 201 and r.get_json()["mode"]["state"] == "starting"
+    finally:
+        stack.gate.set()
+    assert client.get("/maps/flat2").status_code == 200
+
+
+def test_a_save_waits_only_for_the_switch_it_asks_for(sim_like):
+    client = sim_like.client
+    assert client.post("/mode", json={"mode": "mapping", "wait": 5}).status_code == 200
+    for body in ({"name": "flat", "wait": 5}, {"name": "flat", "then": "navigation", "wait": -1},
+                 {"name": "flat", "then": "navigation", "wait": "soon"}):
+        r = client.post("/maps", json=body)
+        assert r.status_code == 400 and "'wait'" in r.get_json()["message"], body
+    assert client.get("/maps").get_json()["maps"][1:] == []  # nothing saved

@@ -123,8 +123,8 @@ def test_use_while_mapping_can_save_first_then_uses_the_map_chosen(sim, page):
     page.wait_for_function(MODE_JS, arg=["mapping", ""], timeout=SWITCH * 1000)
     page.answers.extend([True, "garden"])  # "Save … first?" yes; "Save this map as:" garden
     row(page, "demo").locator("button", has_text="Use").tap()
-    page.wait_for_function(MODE_JS, arg=["navigation", ""], timeout=SWITCH * 1000)
-    assert mode(sim) == ("navigation", None, "running")  # the demo map again: map null
+    page.wait_for_function(MODE_JS, arg=["navigation", "demo"], timeout=SWITCH * 1000)
+    assert mode(sim) == ("navigation", "demo", "running")  # the demo map again
     assert saved_places(sim, "garden") == ["shed"] and saved_places(sim, "flat") == ["porch"]
     row(page, "garden").wait_for()
     page.wait_for_function("document.getElementById('mode').textContent === 'navigating on demo'")

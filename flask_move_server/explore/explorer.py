@@ -31,7 +31,6 @@ import threading
 import time
 
 from flask_move_server.errors import ExploreConflict, MoveServerError, NoPose, UnknownWaypoint
-from flask_move_server.explore import frontiers
 from flask_move_server.explore.exploration import (
     CANCELED,
     DONE,
@@ -240,6 +239,8 @@ class Explorer:
 
     def _survey(self, exp, blacklist):
         """The frontiers on the latest map from where the robot stands (None: no pose or map now)."""
+        from flask_move_server.explore import frontiers  # numpy: loaded by the first exploration, not at rest
+
         try:
             _, grid = self._maps.source.current()
             pose = self._robot.current_pose()

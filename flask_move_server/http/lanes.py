@@ -39,8 +39,10 @@ class StopLaneDispatcher(ThreadedTaskDispatcher):
             thread.start()
             return
         if line not in URGENT:
+            others_busy = self.active_count > 1  # besides the worker that may still be finishing this client's last
             super().add_task(task)  # a stream past max_streams too: the app answers it 503 at once
-            _hand_over_gil()
+            if others_busy:
+                _hand_over_gil()
             return
         with self.lock:
             idle = len(self.threads) - self.stop_count - self.active_count
@@ -82,10 +84,13 @@ def _hand_over_gil():
 
     The event loop is one thread: a worker it wakes needs the GIL, which the loop keeps while it
     reads and parses the next connections, until Python's switch interval (5 ms) forces it off.
-    Under concurrent clients every request paid that wait twice over, and throughput fell to
-    0.2-0.7 of one client's (bench_concurrency, issue 32). Waitress as it came happened to hand the
-    GIL over here, by logging its "Task queue depth" line to stderr from this spot; counting that
-    line instead (6d0c33d) took the hand-over away. ``time.sleep(0)`` releases the GIL, nothing else.
+    Under concurrent clients every request paid that wait, and throughput fell to 0.2-0.7 of one
+    client's (bench_concurrency, issue 32). Waitress as it came happened to hand the GIL over here
+    whenever workers were busy, by logging its "Task queue depth" line to stderr from this spot;
+    counting that line instead (6d0c33d) took the hand-over away. Only while other workers are
+    busy: with one client a hand-over is two context switches for nothing (the loop releases the
+    GIL in its poll() right after), which cost ~0.2 ms of CPU a request. ``time.sleep(0)`` releases
+    the GIL, nothing else.
     """
     time.sleep(0)
 

@@ -1,16 +1,18 @@
 """The map the stack was configured with: listed beside the saved maps, so it can be chosen again.
 
 ``--sim`` navigates by default on the simulated world's own map (``sim.map``, else the shipped
-demo map), a file outside the maps folder. ``/mode`` calls it map null ("the stack's own map");
-once left for a saved map it could not be chosen again from the page. It is listed in
+demo map), a file outside the maps folder. A mode switch reaches it with map null ("the stack's
+own map"); once left for a saved map it could not be chosen again from the page. It is listed in
 ``GET /maps`` under its file's name (``demo`` for ``config/maps/demo.yaml``) with ``"source":
-"configured"``, and ``POST /mode`` takes that name for it. It is not the server's to rename or
+"configured"``, ``POST /mode`` takes that name for it, and ``GET /mode`` says that name while the
+robot navigates on it (``modes/targets.py``: ``Target.configured``). It is not the server's to rename or
 delete (its files are the configuration's, not the maps folder's), so both are refused.
 
 On a robot the stack's own map is navigation.launch's ``map`` argument, which the server does not
 read: a robot's installed map is ``maps/map.yaml`` in the maps folder (``modes/targets.py``), a
 saved map like any other. A saved map of the same name (whatever its case) hides the configured
-one: the name means the saved map, and map null still reaches the configured one. Pure: no rospy,
+one: the name means the saved map, and map null still reaches the configured one (``GET /mode``
+then says null). Pure: no rospy,
 no Flask.
 """
 

@@ -8,10 +8,10 @@ mode manager (``status()``, ``active_map``, ``switch(mode, map_name)``; None
 when nothing manages the stack) and the waypoint store.
 
 Per-map waypoints: the store follows the mode's map. On every ``mode`` event
-it serves ``NAME.waypoints.yaml`` of the map named there; while mapping, the
-map being made's own marks (``maps/marks.py``: emptied when mapping starts,
+it serves ``NAME.waypoints.yaml`` of the saved map named there; while mapping,
+the map being made's own marks (``maps/marks.py``: emptied when mapping starts,
 given to the map when it is saved); else the single ``waypoints.file`` (idle,
-navigation on the stack's own map). Every change of the served set publishes a
+navigation on the stack's own map, named there by its listed name or null). Every change of the served set publishes a
 ``waypoints`` event ``{"map", "version"}``. Only when the server cannot tell
 mapping from navigation (``modes.stack: none``) does the first map saved into an
 empty folder adopt a copy of the single file's waypoints (the single file is
@@ -113,7 +113,7 @@ class MapService:
     def follow(self, status):
         """Serve the waypoints of the mode ``status`` names: its map's, the marks while mapping, or the single file."""
         mode, name = status.get("mode"), status.get("map")
-        if name:
+        if name and not self._is_own(name):
             path = self.catalogue.waypoints_path(name)
         elif mode == "mapping" and self._switches_modes():
             if self._following != "mapping":
@@ -121,8 +121,11 @@ class MapService:
             path = self.marks.path
         else:
             path = self.single_file
+        renamed = name != self.waypoints_map and os.path.abspath(path) == self.store.path
         self._following, self.waypoints_map = mode, name
         self.store.use_file(path)
+        if renamed:  # the same file under another name (the configured map's, or null): said all the same
+            self._waypoints_changed(self.store.version)
 
     def _start_marks(self):
         try:
@@ -184,6 +187,11 @@ class MapService:
         return configured_map.unshadowed(self.configured, self.catalogue.names() if saved_names is None
                                          else saved_names)
 
+    def _is_own(self, name):
+        """Does ``name`` (a mode's map) mean the configured map? Its places are the single waypoints file's."""
+        own = self._own_map()
+        return own is not None and own.answers_to(name)
+
     def _own_info(self, own):
         try:
             return describe_file(own.name, own.path, self.single_file, configured_map.SOURCE, self._own_facts)
@@ -191,11 +199,11 @@ class MapService:
             raise MapFileError("The configured map {} cannot be read: {}.".format(own.path, exc.strerror)) from exc
 
     def _active_name(self, own):
-        """The name of the map in use: a saved map's, the configured map's (mode map null), or None."""
+        """The name of the map in use: a saved map's, the configured map's (its name in /mode), or None."""
         if self.active_map is not None or own is None or not self._switches_modes():
             return self.active_map
         status = self.modes.status()
-        return own.name if status.get("mode") == "navigation" and status.get("map") is None else None
+        return own.name if status.get("mode") == "navigation" and status.get("map") in (None, own.name) else None
 
     def saved_image(self, name):
         """``(etag, MapImage)`` of a saved map (rendered once per file version)."""

@@ -257,7 +257,7 @@ class ModeManager:
         message = _bounded(message)
         if self._unsaved:
             message = "{}; {}".format(message, self._unsaved) if message else self._unsaved
-        return {"mode": target.mode, "map": target.map, "state": state, "since": _now_iso(), "message": message,
+        return {"mode": target.mode, "map": target.shown_map, "state": state, "since": _now_iso(), "message": message,
                 "localization": self._assumed.as_dict()}
 
     # crashes ---------------------------------------------------------------

@@ -33,6 +33,12 @@ class Target:
     yaml: Optional[str] = None
     pose: Optional[Pose2D] = None
     note: Optional[str] = None  # the message once running, when the mode has something to say
+    configured: Optional[str] = None  # navigation on the stack's own map (map None): its name, as GET /maps lists it
+
+    @property
+    def shown_map(self):
+        """The map's name as ``GET /mode`` says it: a saved map's, the configured map's, or None."""
+        return self.map or self.configured
 
     def describe(self):
         if self.mode == "navigation":
@@ -88,13 +94,17 @@ class Targets:
             self._refuse_broken(map_name)
         if isinstance(pose, str):
             pose = relocalizing.waypoint_pose(self.waypoints_path(map_name), pose, map_name)
-        return Target(mode, map_name, yaml_path, pose)
+        own = self._own_name() if mode == "navigation" and map_name is None else None
+        return Target(mode, map_name, yaml_path, pose, configured=own)
 
     def _is_configured(self, name):
         """Does ``name`` mean the stack's own map (no saved map answers to it)?"""
-        if self.configured is None or not self.configured.answers_to(name):
-            return False
-        return configured_map.unshadowed(self.configured, self.catalogue.names()) is not None
+        return self.configured is not None and self.configured.answers_to(name) and self._own_name() is not None
+
+    def _own_name(self):
+        """The name the stack's own map is listed under in ``GET /maps``; None when it is not listed."""
+        own = configured_map.unshadowed(self.configured, self.catalogue.names()) if self.configured else None
+        return own.name if own is not None else None
 
     def _refuse_broken(self, name):
         problem = self.catalogue.describe(name).problem
@@ -121,7 +131,7 @@ class Targets:
             else:
                 log.info("no mode remembered yet: starting the default")
             target = default_target(self.config.stack_kind(), self.catalogue.exists(UPGRADED_MAP))
-            return self.of(target.mode, target.map) if target.map else target
+            return self.of(target.mode, target.map) if target.mode == "navigation" else target
         mode, map_name = remembered
         try:
             return self.of(mode, map_name)

@@ -81,6 +81,7 @@ class Navigator:
         self._cancel_pub = None
         self._direct = []  # action mode: the goal and cancel publishers actionlib's share
         self._spare_message = None  # the next goal's MoveBaseGoal, built ahead
+        self._build_next_goal = None  # goal_first's: the next goal's action goal, built ahead
         self._released = False
         self._unacknowledged = None  # (seq, sent at) of a goal move_base has not answered yet
         self._ack_watch = None
@@ -100,7 +101,7 @@ class Navigator:
                             direct_publisher(action + "/cancel", GoalID, 10)]
             client = actionlib.SimpleActionClient(self._config.action, MoveBaseAction)
             read_status_lightly(client.action_client)  # move_base's status array: only our goal's entry
-            publish_goals_first(client.action_client)
+            self._build_next_goal = publish_goals_first(client.action_client)
             self._readiness = ServerReadiness(client.action_client)
             self._spare_message = MoveBaseGoal()
             self._client = client
@@ -130,40 +131,48 @@ class Navigator:
         try:
             with self._sending:
                 with self._cond:
-                    replaced = self._replaced_end()
+                    replaced = self._replaced_facts()
                     self._keep_end()
                     self._seq += 1
                     seq = self._seq
                     self._goal, self._state, self._feedback_pose, self._message = goal, ACTIVE, None, None
                     self._aside = None
+                    if self._client is not None:
+                        self._expect_acknowledgement(seq)
                     self._cond.notify_all()
                 if self._client is not None:
                     _settle_last_goal(self._client)
-                    self._expect_acknowledgement(seq)
                     self._client.send_goal(
                         self._goal_message(goal.pose),
                         done_cb=lambda status, result: self._done(seq, status),
                         active_cb=lambda: self._acknowledged(seq),
                         feedback_cb=lambda feedback: self._feedback(seq, feedback),
                     )
-                    self._spare_message = MoveBaseGoal()  # the next goal's, built once this one is on its way
                 else:
                     self._goal_pub.publish(pose_stamped(goal.pose, self._frame, rospy.Time.now()))
         finally:
-            self._tell_end(replaced)  # the replaced goal's end: after the new goal is on its way
+            self._tell_end(_replaced_end(replaced))  # the replaced goal's end: after the new goal is on its way
         self._goal_lines.info("goal %d: %s %s", seq, goal.target or "pose", goal.pose.as_dict())
         if self.trips is not None:
             self.trips.started(goal)
+        self._build_ahead()
         return seq
 
+    def _build_ahead(self):
+        """The next goal's messages, built last: once this goal is on its way, and after the work that
+        follows it, so that move_base's reader, woken by the goal, does not wait for a core behind them."""
+        build_next_goal = self._build_next_goal
+        if build_next_goal is not None:
+            self._spare_message = MoveBaseGoal()
+            build_next_goal()
+
     def _expect_acknowledgement(self, seq):
-        with self._cond:
-            self._unacknowledged = (seq, time.monotonic())
-            if self._ack_watch is None:
-                self._ack_watch = threading.Thread(target=self._watch_acknowledgements, name="goal-ack-watch",
-                                                   daemon=True)
-                self._ack_watch.start()
-            self._cond.notify_all()
+        """Lock held, goal ``seq`` about to be sent: the watch gives it up unless move_base answers in time."""
+        self._unacknowledged = (seq, time.monotonic())
+        if self._ack_watch is None:
+            self._ack_watch = threading.Thread(target=self._watch_acknowledgements, name="goal-ack-watch",
+                                               daemon=True)
+            self._ack_watch.start()
 
     def cancel(self, seq=None):
         """Cancel the goal under way (goal ``seq`` only, when given), if any; True when one was (not when
@@ -230,18 +239,13 @@ class Navigator:
             if len(self._ends) > ENDS_KEPT:
                 self._ends.popitem(last=False)
 
-    def _replaced_end(self):
-        """Lock held, a newer goal about to replace this one: its end ``(seq, state, target, pose, why)``
-        for :meth:`when_ended` when it was under way (``canceled``, "replaced by a newer goal", or the
-        cancel's sentence when one was sent), else None (its end was told when it came)."""
+    def _replaced_facts(self):
+        """Lock held, a newer goal about to replace this one: ``(seq, state, goal, message)`` when it was
+        under way, else None (its end was told when it came). Only the facts, on the way to the
+        publish: :func:`_replaced_end` makes the end told once the new goal is on its way."""
         if not self._seq or self._state not in UNDER_WAY:
             return None
-        target = self._goal.target if self._goal else None
-        if self._state == ACTIVE:
-            why = replaced_sentence(target)
-        else:
-            why = self._message or failure_sentence(CANCELED, target)
-        return self._seq, CANCELED, target, self._goal.pose if self._goal else None, why
+        return self._seq, self._state, self._goal, self._message
 
     def _end_of_current(self):
         """Lock held, the current goal just ended: ``(seq, state, target, pose, why)`` for :meth:`when_ended`."""
@@ -471,6 +475,21 @@ class Navigator:
         reading = reading or self._pose.current()
         here = reading.pose if reading is not None else self._feedback_pose
         return None if here is None else round(here.distance_to(goal.pose), 3)
+
+
+def _replaced_end(facts):
+    """The end ``(seq, state, target, pose, why)`` for :meth:`Navigator.when_ended` of a goal replaced
+    while under way (``facts`` from :meth:`Navigator._replaced_facts`, or None): ``canceled``,
+    "replaced by a newer goal", or the cancel's sentence when one was sent."""
+    if facts is None:
+        return None
+    seq, state, goal, message = facts
+    target = goal.target if goal else None
+    if state == ACTIVE:
+        why = replaced_sentence(target)
+    else:
+        why = message or failure_sentence(CANCELED, target)
+    return seq, CANCELED, target, goal.pose if goal else None, why
 
 
 def _settle_last_goal(client, patience=1.0):

@@ -7,9 +7,10 @@ while the robot stands (wheels still) within ``DOCK_RADIUS`` of the ``dock`` way
 At the robot's cruise speed (0.3 m/s) that is about 2 % a minute: 100 % to 60 % in 20 minutes of
 driving, and +1 % every 10 s on the dock, so the demo shows a change within minutes.
 
-``SimBattery`` (the ROS side) steps the model on the world's clock (``sim.speed_factor`` times real
-time, as the world moves the robot) and publishes ``sensor_msgs/BatteryState`` on ``battery.topic``
-at ``RATE``: percentage 0..1, a 3-cell Li-ion voltage that follows the charge, and
+``SimBattery`` (the ROS side) steps the model on the world's clock (``sim/clock.py``:
+``sim.speed_factor`` times real time while the world keeps up, slower on a loaded machine, as the
+robot moves) and publishes ``sensor_msgs/BatteryState`` on ``battery.topic`` at ``RATE``:
+percentage 0..1, a 3-cell Li-ion voltage that follows the charge, and
 ``power_supply_status`` CHARGING on the dock, FULL on the dock at 100 %, DISCHARGING elsewhere.
 
 Where the dock is comes from a callable the server gives (the active map's ``dock`` waypoint, in
@@ -71,15 +72,16 @@ class BatteryModel:
 class SimBattery:
     """Steps a :class:`BatteryModel` in a thread and publishes it as ``sensor_msgs/BatteryState``."""
 
-    def __init__(self, topic, node, wheel_speeds, pose, dock, speed_factor=1.0, model=None):
+    def __init__(self, topic, node, wheel_speeds, pose, dock, clock, model=None):
         """``wheel_speeds()``: (left, right) m/s; ``pose()``: the robot's true Pose2D; ``dock()``: the
-        dock's (x, y) in the same frame, or None when there is none."""
+        dock's (x, y) in the same frame, or None when there is none; ``clock()``: the world's simulated
+        seconds (``SimWorld.clock.now``), so the battery drains as the world advances, not as real time does."""
         self.topic = topic
         self.model = model or BatteryModel()
         self._wheel_speeds = wheel_speeds
         self._pose = pose
         self._dock = dock
-        self._speed_factor = speed_factor
+        self._clock = clock
         self._publisher = None
         self._thread = None
         self._stop = threading.Event()
@@ -95,12 +97,13 @@ class SimBattery:
         log.info("simulated battery at %.0f %% on %s", self.model.charge * 100, self.topic)
 
     def _run(self):
-        last = next_message = time.monotonic()
+        next_message = time.monotonic()
+        last = self._clock()
         while not self._stop.wait(STEP):
-            now = time.monotonic()
+            now, simulated = time.monotonic(), self._clock()
             left, right = self._wheel_speeds()
-            self.model.step((now - last) * self._speed_factor, (abs(left) + abs(right)) / 2.0, self._on_dock())
-            last = now
+            self.model.step(simulated - last, (abs(left) + abs(right)) / 2.0, self._on_dock())
+            last = simulated
             if now >= next_message:
                 next_message = max(next_message + 1.0 / RATE, now)
                 self._publisher.publish(self.message())

@@ -49,20 +49,23 @@ from flask_move_server.sim.watches import ProgressWatch, ReplanWatch
 log = logging.getLogger(__name__)
 
 REPLAN_CHECK_PERIOD = 1.0  # simulated s between "is the path still free on the grown map?" checks
-MIN_REPLAN_CHECK_PERIOD = 0.25  # real s: a fast sim checks no more often (a costmap rebuild costs 40-70 ms)
+MIN_REPLAN_CHECK_PERIOD = 0.25  # real s (x speed_factor: simulated): a fast sim checks no more often (40-70 ms)
+SETTLE = 0.3  # simulated s at rest at the path's end before the goal is judged
 
 
 class MoveBaseStandIn:
     """Plans on the simulated map and drives the real base controller along the path."""
 
     def __init__(self, sim_config, action, cmd_vel_topic, simple_goal_topic, frames, node, planner, limits,
-                 pose_source, plan_topic=None, serve=True, odom_topic="odom"):
+                 pose_source, plan_topic=None, serve=True, odom_topic="odom", *, clock):
+        """``clock()``: the simulated world's time in seconds (``SimWorld.clock.now``), which the timers count."""
         self.config = sim_config
         self.action = action
         self.frames = frames
         self.planner = planner
         self.limits = limits  # dwa.PlannerLimits: the robot's own local planner configuration
         self.pose = pose_source
+        self.clock = clock
         self._topics = (cmd_vel_topic, simple_goal_topic, plan_topic, odom_topic)
         self._velocity = (0.0, 0.0)  # the base's (linear, angular) from /odom: where DWA's window is centred
         self._lock = threading.Lock()
@@ -193,36 +196,43 @@ class MoveBaseStandIn:
         return PathFollower(path, pose_from_msg(target.pose).yaw, FollowerLimits.from_planner(self.limits))
 
     def _follow(self, endpoint, follower, target):
-        """Drive along the path until reached, preempted or stuck: (outcome, text)."""
+        """Drive along the path until reached, preempted or stuck: (outcome, text).
+
+        The loop runs on real time (``controller_frequency`` times ``speed_factor``); its timers count
+        the simulated world's time (``self.clock``), as the real move_base's ``controller_patience``,
+        ``planner_patience`` and ``oscillation_timeout`` count ROS time, the simulator's ``/clock``
+        under ``use_sim_time``: on a loaded machine the world falls behind real time and the robot
+        makes less progress per real second, and the watchdogs wait as many real seconds longer.
+        """
         factor = self.config.speed_factor
         period = max(0.01, 1.0 / (self.limits.move_base_frequency * factor))  # at most 100 Hz, however fast
-        stuck = ProgressWatch(self.config.stuck_timeout / factor)
-        replan = ReplanWatch(self.planner, max(MIN_REPLAN_CHECK_PERIOD, REPLAN_CHECK_PERIOD / factor))
-        patience = self.limits.controller_patience / factor
+        clock = self.clock
+        stuck = ProgressWatch(self.config.stuck_timeout)
+        replan = ReplanWatch(self.planner, max(MIN_REPLAN_CHECK_PERIOD * factor, REPLAN_CHECK_PERIOD), clock())
         settle_until = no_velocity_since = None
         while not rospy.is_shutdown() and not self._closed.is_set() and not endpoint.withdrawn.is_set():
             if endpoint.server.is_preempt_requested():
                 return "preempted", "canceled"
-            pose = self.pose()
-            if replan.due(follower.remaining(pose), time.monotonic()):
+            pose, now = self.pose(), clock()
+            if replan.due(follower.remaining(pose), now):
                 log.info("move_base stand-in: an obstacle seen across the path: planning again")
                 follower = self._plan(target, replan.planner)
             command = self._local_plan(follower.command(pose), follower.state == DONE)
             if command is None:  # DWA: no valid trajectory; move_base brakes, then recovers or aborts
-                no_velocity_since = no_velocity_since or time.monotonic()
-                if time.monotonic() - no_velocity_since > patience:
+                no_velocity_since = now if no_velocity_since is None else no_velocity_since
+                if now - no_velocity_since > self.limits.controller_patience:
                     return "aborted", self._no_trajectory_reason()
             else:
                 no_velocity_since = None
             self._publish_velocity(*(command or (0.0, 0.0)))
             self._feedback(endpoint.server, target, pose)
             if follower.state == DONE:
-                settle_until = settle_until or time.monotonic() + 0.3 / factor
-                if time.monotonic() >= settle_until and follower.reached(self.pose()):
+                settle_until = now + SETTLE if settle_until is None else settle_until
+                if now >= settle_until and follower.reached(self.pose()):
                     return "succeeded", "reached the goal"
             else:
                 settle_until = None
-            if stuck.stalled(pose, time.monotonic()):
+            if stuck.stalled(pose, now):
                 return "aborted", "the robot made no progress for {} s".format(self.config.stuck_timeout)
             endpoint.withdrawn.wait(period)  # a withdrawal (mode switch) ends the goal at once, not a period later
         return "aborted", "the navigation stack stopped"

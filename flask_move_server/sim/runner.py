@@ -81,7 +81,7 @@ class Simulation:
         self.world = SimWorld(config, node, self.body, laser.Laser(grid), wheel_speeds,
                               stand_ins=not self.world_only)
         self.battery = SimBattery(config.battery.topic, node, wheel_speeds, self.world.pose, dock or (lambda: None),
-                                  sim.speed_factor, BatteryModel(sim.battery_start))
+                                  self.world.clock.now, BatteryModel(sim.battery_start))
         self.move_base = self.stacks = None
         if self.world_only:
             log.info("simulated world only: the navigation stack is the launch files' (modes.stack: roslaunch)")
@@ -90,7 +90,8 @@ class Simulation:
         self.move_base = MoveBaseStandIn(
             sim, config.navigation.action, config.drive.cmd_vel_topic, config.navigation.simple_goal_topic,
             config.ros.frames, node, own_planner, planner_limits(sim), self.world.believed_pose,
-            plan_topic=config.navigation.plan_topic, serve=False, odom_topic=config.drive.odom_topic)
+            plan_topic=config.navigation.plan_topic, serve=False, odom_topic=config.drive.odom_topic,
+            clock=self.world.clock.now)
         self.stacks = SimulatedStack(config, node, self.world, self.move_base, (self.map_path, grid, own_planner))
         if autostart:
             self.stacks.begin("navigation", None)

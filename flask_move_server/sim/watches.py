@@ -1,11 +1,12 @@
 """When the move_base stand-in replans or gives up on a goal: two small watches. Pure.
 
+Both count the time they are given (``now``): the stand-in gives them the simulated world's
+(``sim/clock.py``), so a machine too loaded to keep real time slows them with the robot.
+
 :class:`ReplanWatch` asks a growing map's planner, now and then, whether the map grew an
 obstacle across the path still to drive (move_base replans on its growing costmap);
 :class:`ProgressWatch` tells when the robot has stopped making progress (move_base aborts).
 """
-
-import time
 
 from flask_move_server.geometry import normalize_angle
 
@@ -13,12 +14,12 @@ from flask_move_server.geometry import normalize_angle
 class ReplanWatch:
     """Asks a growing map's planner, every ``period`` s and only when the map changed, whether the path is blocked."""
 
-    def __init__(self, planner, period):
+    def __init__(self, planner, period, now):
         self.planner = planner
         self.period = period
         self._blocked = getattr(planner, "path_blocked", None)
         self._version = self._map_version()
-        self._next_check = time.monotonic() + period
+        self._next_check = now + period
 
     def _map_version(self):
         slam = getattr(self.planner, "slam", None)

@@ -3,8 +3,10 @@
 A thread moves the :class:`~flask_move_server.sim.body.RobotBody` by the
 ground speeds the sim motor backend reports (``wheel_speeds()``: the duties
 the real base controller applied), ``speed_factor`` times faster than real
-time when asked. The base controller's own odometry arrives on ``/odom``; for
-each message the world publishes what AMCL would: tf ``map → odom`` such that
+time when asked; a tick that comes late on a loaded machine loses the time beyond two periods
+(``sim/clock.py``: the world's clock, which the move_base stand-in's timers run on, then runs
+slower than real time, and the world says so). The base controller's own odometry arrives on
+``/odom``; for each message the world publishes what AMCL would: tf ``map → odom`` such that
 ``map → odom → base_link`` is the true pose at that message's stamp
 (true pose ∘ odometry⁻¹), and ``/amcl_pose``, while ``localizing`` (navigation
 mode; in mapping mode the simulated SLAM publishes ``map → odom`` instead, and in
@@ -39,10 +41,13 @@ from sensor_msgs.msg import LaserScan
 from flask_move_server.geometry import Pose2D, compose, interpolate, inverse
 from flask_move_server.ros.convert import pose_from_msg, transform_message, write_pose
 from flask_move_server.sim.belief import Belief
+from flask_move_server.sim.clock import SimClock, overload_text
 
 log = logging.getLogger(__name__)
 
 LASER_MOUNT = (0.0, 0.0, 0.12, math.pi)  # x, y, z (m), yaw (rad) of the laser frame on base_link
+KEPT_UP = 0.9  # below this share of real time over a report period, the world says the machine is overloaded
+REPORT_PERIOD = 10.0  # real s between looks at how the world kept up
 AMCL_COVARIANCE = [0.0025, 0, 0, 0, 0, 0, 0, 0.0025, 0, 0, 0, 0] + [0] * 23 + [0.0007]
 
 
@@ -68,6 +73,7 @@ class SimWorld:
         self._thread = None
         self._pubs = None
         self._subs = ()
+        self.clock = SimClock(sim_config.rate, sim_config.speed_factor)  # the time the world advanced
         self.steps = 0  # world updates so far, and the longest gap between two (real time kept?)
         self.started = None
         self.longest_step = 0.0
@@ -112,12 +118,13 @@ class SimWorld:
         period = 1.0 / self.config.rate
         scan_period = 1.0 / self.config.scan_rate if self.config.scan_rate > 0 else None
         last = next_scan = next_step = self.started = time.monotonic()
+        next_report = last + REPORT_PERIOD
         self._history.append((rospy.get_time(), self.body.pose))
         while not self._stop.wait(max(0.0, next_step + period - time.monotonic())):
             now = time.monotonic()
             next_step = max(next_step + period, now - period)  # behind by more than a step: do not catch up
             left, right = self._wheel_speeds()
-            pose = self.body.step(left, right, (now - last) * self.config.speed_factor)
+            pose = self.body.step(left, right, self.clock.tick(now - last))  # a late tick loses time
             self.longest_step = max(self.longest_step, now - last)
             last = now
             self.steps += 1
@@ -125,6 +132,17 @@ class SimWorld:
             if scan_period is not None and now >= next_scan:
                 next_scan = max(next_scan + scan_period, now)
                 self._publish_scan(pose)
+            if now >= next_report:
+                next_report = now + REPORT_PERIOD
+                self._report_overload()
+
+    def _report_overload(self):
+        """Say so when the world fell behind real time: the robot and the stand-in's watchdogs slowed with it."""
+        achieved, share = self.clock.report()
+        if share < KEPT_UP:
+            log.warning("simulated world: over the last %.0f s %s; goals take longer, the move_base stand-in's "
+                        "timeouts count simulated time", REPORT_PERIOD,
+                        overload_text(achieved, self.config.rate, share))
 
     def _publish_scan(self, pose):
         pub = self._pubs["scan"]
@@ -194,8 +212,9 @@ class SimWorld:
             self._thread.join(timeout=2)
         if self.started is not None:
             elapsed = time.monotonic() - self.started
-            log.info("simulated world: %d updates in %.1f s (%.1f Hz, target %.0f Hz), longest gap %.0f ms",
-                     self.steps, elapsed, self.steps / max(elapsed, 1e-9), self.config.rate, self.longest_step * 1e3)
+            log.info("simulated world: %d updates in %.1f s (%.1f Hz, target %.0f Hz), longest gap %.0f ms, "
+                     "%.1f simulated s", self.steps, elapsed, self.steps / max(elapsed, 1e-9), self.config.rate,
+                     self.longest_step * 1e3, self.clock.now())
         if self._pubs is not None:
             for sub in self._subs:
                 sub.unregister()

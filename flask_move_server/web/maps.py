@@ -9,8 +9,9 @@ without a byte of image while the map is unchanged.
 
 from flask import Blueprint, Response, current_app, jsonify, request
 
-from flask_move_server.errors import BadRequest, NoMap, NoPose
-from flask_move_server.web.body import json_object, text
+from flask_move_server.errors import BadRequest, NoMap, NoPose, StackFailed
+from flask_move_server.web.body import json_object, number, text
+from flask_move_server.web.modes import longest_wait
 
 maps_api = Blueprint("maps", __name__)
 
@@ -53,7 +54,7 @@ def list_maps():
 
 @maps_api.route("/maps", methods=["POST"])
 def save_map():
-    data = json_object(("name", "overwrite", "then"))
+    data = json_object(("name", "overwrite", "then", "wait"))
     name = text(data, "name")
     overwrite = data.get("overwrite", False)
     if not isinstance(overwrite, bool):
@@ -61,7 +62,30 @@ def save_map():
     then = data.get("then")
     if then is not None and then not in THEN:
         raise BadRequest("Field 'then' can only be \"navigation\" (switch to the saved map).")
-    return jsonify(_maps().save(name, overwrite=overwrite, then=then, here=_pose_if_known() if then else None)), 201
+    wait = _switch_wait(data, then)
+    body = _maps().save(name, overwrite=overwrite, then=then, here=_pose_if_known() if then else None)
+    if wait is not None and "mode" in body:
+        body["mode"] = _switched(wait)
+    return jsonify(body), 201
+
+
+def _switch_wait(data, then):
+    """The seconds ``wait`` gives the switch to the saved map to run (None: answer at once)."""
+    if "wait" not in data:
+        return None
+    if then is None:
+        raise BadRequest("Field 'wait' waits for the switch to the saved map: send it with \"then\": \"navigation\".")
+    return number(data, "wait", 0, longest_wait(current_app.extensions["flask_move_server"]["config"]))
+
+
+def _switched(wait):
+    """The mode once the switch runs, failed, or ``wait`` seconds passed (the map is saved whatever it says)."""
+    modes = _maps().modes
+    try:
+        modes.wait(wait)
+    except StackFailed:
+        pass  # the mode says failed, and why
+    return modes.status()
 
 
 def _pose_if_known():

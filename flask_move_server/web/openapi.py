@@ -63,7 +63,7 @@ def build(config):
         "/events": {"get": _events()},
         "/openapi.json": {"get": _open(_operation("This description", None, {200: _json({"type": "object"})}))},
     }
-    paths.update(_maps())
+    paths.update(_maps(config))
     paths.update(_static_files())
     paths.update(_mode_paths(config))
     paths.update(_diagnostics())
@@ -318,7 +318,7 @@ def _with_run_id(operation):
     return operation
 
 
-def _maps():
+def _maps(config):
     """``/map``, ``/map/image``, ``/maps`` and ``/maps/{name}`` (docs/api.md, "Maps")."""
     info = _map_info()
     live = _object({"version": {"type": "integer"}, "resolution": {"type": "number"},
@@ -326,7 +326,10 @@ def _maps():
                     "height": {"type": "integer"}, "empty": {"type": "boolean"},
                     "mode": {"type": "string", "nullable": True}, "map": {"type": "string", "nullable": True}})
     save = _object({"name": _name("the new map's name"), "overwrite": {"type": "boolean"},
-                    "then": {"enum": ["navigation"]}}, ["name"])
+                    "then": {"enum": ["navigation"]},
+                    "wait": {"type": "number", "minimum": 0,
+                             "maximum": config.modes.stop_timeout + config.modes.start_timeout,
+                             "description": "with then: seconds to wait for navigation on the map to run"}}, ["name"])
     saved = _json(_object({"status": {"enum": ["ok"]}, "map": info, "adopted_waypoints": {"type": "boolean"},
                            "mode": {"type": "object"}, "mode_error": {"type": "object"}}), "saved")
     listed = _object({"maps": {"type": "array", "items": info}, "active": {"type": "string", "nullable": True}})

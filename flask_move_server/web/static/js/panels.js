@@ -11,7 +11,7 @@ let ctx = null;
 const thumbnails = new Map();  // map name + modified -> object URL, so a list refresh does not refetch
 
 const MODE_WORDS = {idle: "idle", mapping: "mapping", navigation: "navigating"};
-let configuredName = null;  // the configured map's name in GET /maps (map null in /mode)
+let configuredName = null;  // the configured map's name in GET /maps (/mode says it too, or null when shadowed)
 let shownMode = null;  // the last GET /mode body or mode event shown
 
 function modeText(m) {
