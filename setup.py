@@ -57,7 +57,7 @@ setup(
     },
     entry_points={
         "console_scripts": [
-            "flask-move-server = flask_move_server.cli:main",
+            "flask-move-server = flask_move_server.app.cli:main",
             "robotctl = flask_move_server.robotctl.cli:main",
             "flask-move-base = flask_move_server.drive.__main__:main",
             "record-waypoints = flask_move_server.recorder:main",

@@ -27,8 +27,8 @@ import numpy as np
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, ROOT)
 
+from flask_move_server.core.geometry import Pose2D  # noqa: E402
 from flask_move_server.explore import frontiers  # noqa: E402
-from flask_move_server.geometry import Pose2D  # noqa: E402
 from flask_move_server.maps.mapfile import Grid  # noqa: E402
 from flask_move_server.sim.laser import Laser  # noqa: E402
 from flask_move_server.sim.occupancy import OccupancyMap  # noqa: E402

@@ -98,7 +98,7 @@ def explore(sim, seconds):
     import rospy
     from move_base_msgs.msg import MoveBaseAction, MoveBaseGoal
 
-    from flask_move_server.geometry import Pose2D
+    from flask_move_server.core.geometry import Pose2D
     from flask_move_server.ros.convert import pose_stamped
 
     sim.stacks.stop()

@@ -22,7 +22,7 @@ import time
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, ROOT)
 
-from flask_move_server.geometry import Pose2D  # noqa: E402
+from flask_move_server.core.geometry import Pose2D  # noqa: E402
 from flask_move_server.sim import costmap, occupancy, planner  # noqa: E402
 from flask_move_server.sim.laser import Laser  # noqa: E402
 from flask_move_server.sim.slam import GrowingMapPlanner, SlamMap  # noqa: E402

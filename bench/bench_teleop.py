@@ -191,7 +191,8 @@ def row(name, values):
 
 
 def our_server(n, tmp, rosbridge=None):
-    from flask_move_server import cli, config
+    from flask_move_server import config
+    from flask_move_server.app import cli
     from flask_move_server.drive import make_drive
     from flask_move_server.drive.backends.sim import SimBackend
     from flask_move_server.ros.node import RosNode

@@ -2,6 +2,6 @@
 
 import sys
 
-from flask_move_server.cli import main
+from flask_move_server.app.cli import main
 
 sys.exit(main())

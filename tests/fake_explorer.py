@@ -12,7 +12,7 @@ import datetime
 import threading
 import time
 
-from flask_move_server.errors import ExploreConflict, MapExists
+from flask_move_server.core.errors import ExploreConflict, MapExists
 from flask_move_server.maps.catalogue import check_map_name
 
 ACTIVE = ("starting", "exploring", "returning", "saving")

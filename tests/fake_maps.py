@@ -6,7 +6,7 @@ These answer as those would, in memory, so the routes' checks and shapes test in
 the real MapSource on a real ROS topic is tests/test_map_source.py's.
 """
 
-from flask_move_server.errors import MapNotReceived, NoMap
+from flask_move_server.core.errors import MapNotReceived, NoMap
 
 
 class FakeModes:

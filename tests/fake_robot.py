@@ -8,8 +8,8 @@ a small test database. What ROS does with a request (goals reaching move_base, v
 
 import time
 
+from flask_move_server.core.errors import NavigationUnavailable, NoPose
 from flask_move_server.drive.estop import EStop
-from flask_move_server.errors import NavigationUnavailable, NoPose
 
 IDLE = "idle"
 

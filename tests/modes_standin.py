@@ -9,7 +9,7 @@ time, restarts with back-off, what is remembered) be tested without waiting on e
 import os
 import threading
 
-from flask_move_server.errors import StackFailed
+from flask_move_server.core.errors import StackFailed
 from flask_move_server.maps import mapfile
 
 

@@ -8,8 +8,9 @@ import threading
 
 import pytest
 
-from flask_move_server import cli, config
-from flask_move_server.events import EventBus
+from flask_move_server import config
+from flask_move_server.app import cli
+from flask_move_server.core.events import EventBus
 from flask_move_server.waypoints.store import WaypointStore
 from flask_move_server.web import create_app
 from tests.conftest import wait_for
@@ -120,7 +121,7 @@ def publish_pose(robot_config, x, y, yaw):
     import tf2_ros
     from geometry_msgs.msg import TransformStamped
 
-    from flask_move_server.geometry import yaw_to_quaternion
+    from flask_move_server.core.geometry import yaw_to_quaternion
 
     if not hasattr(publish_pose, "broadcaster"):
         publish_pose.broadcaster = tf2_ros.TransformBroadcaster()

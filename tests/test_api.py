@@ -12,7 +12,7 @@ import time
 import pytest
 import requests
 
-from flask_move_server.errors import NavigationFailed
+from flask_move_server.core.errors import NavigationFailed
 from tests.conftest import serve, wait_for
 from tests.robot_fixtures import SEED, Recorder, publish_pose
 from tests.standins.move_base import ABORT_X, HOLD_X
@@ -146,7 +146,7 @@ def test_goto_after_move_base_went_away_is_503_again(client, ready_robot, move_b
 def test_topic_interface_publishes_move_base_simple_goal(ros_node, robot_config, tmp_path):
     from geometry_msgs.msg import PoseStamped
 
-    from flask_move_server import cli
+    from flask_move_server.app import cli
     from flask_move_server.waypoints.store import WaypointStore
     from flask_move_server.web import create_app
     from tests.robot_fixtures import no_drive

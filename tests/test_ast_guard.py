@@ -12,7 +12,7 @@ import threading
 import time
 
 import flask_move_server.web  # noqa: F401  (making apps is what installs the guard)
-from flask_move_server import ast_guard
+from flask_move_server.process import ast_guard
 
 SOURCE = "\n".join("x{0} = [{0}, ({0}, {0}), {{'a': {0}}}]".format(i) for i in range(200))
 

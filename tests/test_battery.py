@@ -11,8 +11,8 @@ import pytest
 import rospy
 from sensor_msgs.msg import BatteryState
 
-from flask_move_server.events import EventBus
-from flask_move_server.reporter import BATTERY_OLD, Reporter, battery_news
+from flask_move_server.core.events import EventBus
+from flask_move_server.core.reporter import BATTERY_OLD, Reporter, battery_news
 from flask_move_server.ros.battery import BatteryMonitor
 from flask_move_server.sim.battery import CHARGE_RATE, DRIVE_DRAIN, REST_DRAIN, STILL, BatteryModel
 from tests.conftest import wait_for

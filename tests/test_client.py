@@ -43,8 +43,8 @@ class RecordedRequests:
 def robot_server(ros_node, prefix, waypoints_file, token=None, move_base=True):
     """A real Robot (navigator, pose, teleop) under a real app served by waitress on port 0."""
     from flask_move_server import config as config_mod
+    from flask_move_server.core.robot import Robot
     from flask_move_server.drive import NoDrive
-    from flask_move_server.robot import Robot
     from flask_move_server.ros.navigator import Navigator
     from flask_move_server.ros.pose import PoseTracker
     from flask_move_server.ros.teleop import Teleop
@@ -422,7 +422,7 @@ def test_ctrl_c_while_waiting_stops_the_robot(live):
 
 def test_drive_tells_a_late_command_and_keeps_driving(live, monkeypatch):
     """A joystick command the robot refused as late (a stalled Wi-Fi) is said, and drive goes on."""
-    from flask_move_server.errors import ClientError
+    from flask_move_server.core.errors import ClientError
     from flask_move_server.robotctl.api import RobotClient
     from flask_move_server.robotctl.keyboard import KeyboardDriver
 

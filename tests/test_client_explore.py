@@ -7,7 +7,7 @@ import threading
 
 import pytest
 
-from flask_move_server.events import EventBus
+from flask_move_server.core.events import EventBus
 from flask_move_server.robotctl import cli as client
 from flask_move_server.robotctl import explore as client_explore
 from flask_move_server.robotctl.api import ExitStatus

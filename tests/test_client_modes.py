@@ -2,7 +2,7 @@
 
 import pytest
 
-from flask_move_server.events import EventBus
+from flask_move_server.core.events import EventBus
 from flask_move_server.modes.manager import ModeManager
 from flask_move_server.robotctl import cli as client
 from flask_move_server.robotctl import modes as client_modes

@@ -10,7 +10,7 @@ import unicodedata
 
 import pytest
 
-from flask_move_server.events import EventBus
+from flask_move_server.core.events import EventBus
 from flask_move_server.missions.executor import RunExecutor
 from flask_move_server.missions.history import RunHistory
 from flask_move_server.robotctl import cli as client

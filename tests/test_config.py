@@ -5,9 +5,11 @@ import socket
 
 import pytest
 
-from flask_move_server import access, config, server_options
+from flask_move_server import config
+from flask_move_server.app import server_options
+from flask_move_server.config import access
+from flask_move_server.core.errors import ConfigError
 from flask_move_server.drive import backends
-from flask_move_server.errors import ConfigError
 from tests.conftest import ROOT, run_cli
 
 EXAMPLE = os.path.join(ROOT, "config", "robot.yaml")

@@ -16,9 +16,9 @@ from geometry_msgs.msg import PoseWithCovarianceStamped
 from nav_msgs.msg import Odometry
 from sensor_msgs.msg import LaserScan
 
+from flask_move_server.core.geometry import Pose2D
 from flask_move_server.diagnostics import checks, host
 from flask_move_server.diagnostics.doctor import Doctor
-from flask_move_server.geometry import Pose2D
 from flask_move_server.ros.convert import transform_message
 from flask_move_server.ros.observe import RosObserver
 from flask_move_server.web import create_app
@@ -281,7 +281,7 @@ def test_overall_is_the_worst_level():
 
 
 def test_callers_at_once_share_one_examination_and_another_kind_is_refused(tmp_path):
-    from flask_move_server.errors import DiagnosticsBusy
+    from flask_move_server.core.errors import DiagnosticsBusy
 
     class SlowObserver:
         calls = 0

@@ -5,9 +5,9 @@ import math
 import pytest
 
 from flask_move_server.config import DriveConfig, FramesConfig
+from flask_move_server.core.errors import ConfigError
 from flask_move_server.drive import NoDrive, make_drive
 from flask_move_server.drive.backends.sim import SimBackend
-from flask_move_server.errors import ConfigError
 from tests.conftest import wait_for
 
 

@@ -5,9 +5,9 @@ import sys
 import pytest
 
 from flask_move_server.config import DriveConfig, MotorChannelConfig
+from flask_move_server.core.errors import ConfigError, DriveError
 from flask_move_server.drive.backends import create
 from flask_move_server.drive.backends.l298n import L298NBackend
-from flask_move_server.errors import ConfigError, DriveError
 from tests.standins.gpio import HIGH, LOW, RecordingGPIO, install
 
 FORWARD, REVERSE = (HIGH, LOW), (LOW, HIGH)
@@ -212,7 +212,7 @@ def test_an_unknown_backend_name_is_quoted():
 def test_importing_the_package_does_not_import_rpi_gpio():
     import subprocess
 
-    code = "import sys, flask_move_server.cli, flask_move_server.drive; print('RPi' in sys.modules)"
+    code = "import sys, flask_move_server.app.cli, flask_move_server.drive; print('RPi' in sys.modules)"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert out.strip() == "False"
 

@@ -9,7 +9,7 @@ import time
 
 import pytest
 
-from flask_move_server import cli
+from flask_move_server.app import cli
 from flask_move_server.config import DriveConfig, FramesConfig
 from flask_move_server.drive import make_drive
 from flask_move_server.drive.estop import EStop
@@ -229,7 +229,7 @@ def test_a_button_held_at_start_up_latches_at_once(gpio):
 
 def test_the_button_pin_is_checked(tmp_path, gpio):
     from flask_move_server import config
-    from flask_move_server.errors import ConfigError
+    from flask_move_server.core.errors import ConfigError
 
     path = tmp_path / "robot.yaml"
     path.write_text("drive:\n  estop_pin: 40\n")

@@ -14,7 +14,7 @@ import time
 import pytest
 import requests
 
-from flask_move_server.errors import TooManyStreams
+from flask_move_server.core.errors import TooManyStreams
 from flask_move_server.http.connection import STREAM_BACKLOG
 from flask_move_server.web import create_app
 from flask_move_server.web.events import StreamGate

@@ -2,7 +2,7 @@
 
 import threading
 
-from flask_move_server.events import EventBus
+from flask_move_server.core.events import EventBus
 
 
 def test_a_subscriber_reads_events_in_order_of_kind():

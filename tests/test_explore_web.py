@@ -9,7 +9,7 @@ import time
 
 import pytest
 
-from flask_move_server.errors import ExploreConflict, ModesOff, ModeSwitching
+from flask_move_server.core.errors import ExploreConflict, ModesOff, ModeSwitching
 from flask_move_server.web import create_app
 from tests.conftest import hardened
 from tests.fake_explorer import FakeExplorer

@@ -13,9 +13,9 @@ import time
 
 import pytest
 
-from flask_move_server.errors import EStopLatched, ExploreConflict, MapExists, NoPose
+from flask_move_server.core.errors import EStopLatched, ExploreConflict, MapExists, NoPose
+from flask_move_server.core.geometry import Pose2D
 from flask_move_server.explore.explorer import Explorer
-from flask_move_server.geometry import Pose2D
 from flask_move_server.maps.mapfile import Grid
 from tests.conftest import wait_for
 

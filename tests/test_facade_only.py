@@ -10,7 +10,7 @@ import inspect
 import pytest
 
 from flask_move_server import config
-from flask_move_server.robot import Robot
+from flask_move_server.core.robot import Robot
 from flask_move_server.waypoints.store import WaypointStore
 from flask_move_server.web import create_app
 

@@ -5,7 +5,7 @@ import math
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from flask_move_server.geometry import (
+from flask_move_server.core.geometry import (
     Pose2D,
     along_arc,
     clamp,

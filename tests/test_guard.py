@@ -13,7 +13,7 @@ import socket
 import pytest
 
 from flask_move_server import config
-from flask_move_server.errors import ConfigError
+from flask_move_server.core.errors import ConfigError
 from flask_move_server.web import create_app
 from tests.conftest import serve
 from tests.fake_robot import FakeRobot

@@ -10,8 +10,8 @@ import os
 
 import pytest
 
-from flask_move_server.errors import BadRequest, WaypointFileError
-from flask_move_server.events import EventBus
+from flask_move_server.core.errors import BadRequest, WaypointFileError
+from flask_move_server.core.events import EventBus
 from flask_move_server.maps.catalogue import MapCatalogue
 from flask_move_server.maps.service import MapService
 from flask_move_server.modes.targets import Targets

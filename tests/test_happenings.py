@@ -9,8 +9,8 @@ import time
 
 import pytest
 
-from flask_move_server.geometry import Goal, Pose2D
-from flask_move_server.happenings import Happenings
+from flask_move_server.core.geometry import Goal, Pose2D
+from flask_move_server.core.happenings import Happenings
 from flask_move_server.missions.executor import RunExecutor
 from flask_move_server.missions.history import RunHistory
 from flask_move_server.missions.route import make_route

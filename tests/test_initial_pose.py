@@ -4,7 +4,7 @@ import math
 
 from geometry_msgs.msg import PoseWithCovarianceStamped
 
-from flask_move_server.geometry import Pose2D, quaternion_to_yaw
+from flask_move_server.core.geometry import Pose2D, quaternion_to_yaw
 from flask_move_server.ros.initial_pose import InitialPose
 from tests.conftest import wait_for
 from tests.robot_fixtures import Recorder

@@ -13,11 +13,12 @@ import xmlrpc.server
 
 import pytest
 
-from flask_move_server import config, launching
-from flask_move_server.errors import ConfigError
+from flask_move_server import config
+from flask_move_server.app import launching
+from flask_move_server.core.errors import ConfigError
 from tests.conftest import ServerProcess, free_port
 
-PACKAGE = pathlib.Path(launching.__file__).parent
+PACKAGE = pathlib.Path(launching.__file__).parent.parent
 
 
 def test_no_module_imports_the_server_wiring():
@@ -29,7 +30,7 @@ def test_no_module_imports_the_server_wiring():
                 names = [node.module or ""] + ["{}.{}".format(node.module, a.name) for a in node.names]
             elif isinstance(node, ast.Import):
                 names = [a.name for a in node.names]
-            if "flask_move_server.cli" in names:
+            if "flask_move_server.app.cli" in names:
                 importers.append(str(path.relative_to(PACKAGE)))
     assert importers == ["__main__.py"]
 

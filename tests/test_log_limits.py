@@ -3,7 +3,7 @@ worth of writes), one per goal, and actionlib's "already in the DONE state" erro
 
 import logging
 
-from flask_move_server.log_limits import Throttled, ThrottleFilter
+from flask_move_server.process.log_limits import Throttled, ThrottleFilter
 
 
 class Clock:
@@ -61,7 +61,7 @@ def test_another_librarys_storm_lines_are_filtered_and_counted(caplog):
 
 
 def test_a_goal_storm_against_the_real_navigator_logs_a_bounded_number_of_lines(ready_robot, caplog):
-    from flask_move_server.geometry import Goal, Pose2D
+    from flask_move_server.core.geometry import Goal, Pose2D
     from flask_move_server.ros.navigator import GOAL_LINES_BURST
 
     with caplog.at_level(logging.INFO, logger="flask_move_server.ros.navigator"):

@@ -12,9 +12,9 @@ from array import array
 import pytest
 import requests
 
-from flask_move_server.errors import MapNotReceived, NoMap
-from flask_move_server.events import EventBus
-from flask_move_server.geometry import yaw_to_quaternion
+from flask_move_server.core.errors import MapNotReceived, NoMap
+from flask_move_server.core.events import EventBus
+from flask_move_server.core.geometry import yaw_to_quaternion
 from flask_move_server.maps.catalogue import MapCatalogue
 from flask_move_server.maps.service import MapService
 from flask_move_server.maps.wire import BadMapMessage, decode

@@ -8,7 +8,7 @@ import zlib
 import pytest
 import yaml
 
-from flask_move_server.errors import BadMapName, MapExists, MapFileError, MapInUse, UnknownMap
+from flask_move_server.core.errors import BadMapName, MapExists, MapFileError, MapInUse, UnknownMap
 from flask_move_server.maps import mapfile, render
 from flask_move_server.maps.catalogue import MapCatalogue, check_map_name
 from flask_move_server.maps.mapfile import Grid

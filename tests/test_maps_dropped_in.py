@@ -16,8 +16,8 @@ import time
 
 import pytest
 
-from flask_move_server.errors import WaypointFileError
-from flask_move_server.events import EventBus
+from flask_move_server.core.errors import WaypointFileError
+from flask_move_server.core.events import EventBus
 from flask_move_server.maps import render
 from flask_move_server.maps.catalogue import MapCatalogue
 from flask_move_server.maps.service import MapService

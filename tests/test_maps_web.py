@@ -10,8 +10,8 @@ import subprocess
 import pytest
 import yaml
 
-from flask_move_server.events import EventBus
-from flask_move_server.geometry import Pose2D
+from flask_move_server.core.events import EventBus
+from flask_move_server.core.geometry import Pose2D
 from flask_move_server.maps.catalogue import MapCatalogue
 from flask_move_server.maps.mapfile import Grid
 from flask_move_server.maps.service import MapService

@@ -9,7 +9,7 @@ import pytest
 from zeroconf import DNSAddress, DNSIncoming, DNSOutgoing, DNSService
 
 from flask_move_server import API_VERSION, __version__, config
-from flask_move_server.errors import ConfigError
+from flask_move_server.core.errors import ConfigError
 from flask_move_server.lan import discovery, dns_wire, mdns
 from flask_move_server.lan import records as mdns_records
 

@@ -7,7 +7,7 @@ import os
 import pytest
 
 from flask_move_server import config as config_mod
-from flask_move_server.errors import (
+from flask_move_server.core.errors import (
     BadMapName,
     BadRequest,
     ModesOff,
@@ -18,8 +18,8 @@ from flask_move_server.errors import (
     UnknownWaypoint,
     WrongMode,
 )
-from flask_move_server.events import EventBus
-from flask_move_server.geometry import Pose2D
+from flask_move_server.core.events import EventBus
+from flask_move_server.core.geometry import Pose2D
 from flask_move_server.modes.manager import ModeManager
 from flask_move_server.modes.restarts import RestartBudget
 from tests.conftest import wait_for
@@ -376,7 +376,7 @@ def test_a_pose_sent_while_a_switch_is_under_way_is_refused_not_lost(cfg, harnes
 
 def test_a_failure_quoting_a_huge_value_is_cut_in_every_status(robot_config):
     """A failed start quoted a hostile map's value whole: /status, /mode and every event carried 36 MB."""
-    from flask_move_server.events import EventBus
+    from flask_move_server.core.events import EventBus
     from flask_move_server.modes.manager import MESSAGE_LIMIT, ModeManager
     from tests.modes_standin import StandInStack, save_map
 

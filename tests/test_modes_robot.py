@@ -185,7 +185,7 @@ def test_a_killed_stack_node_is_restarted_then_reported_failed(robot):
 def test_a_killed_server_leaves_no_stack_and_the_next_one_comes_back_mapping(robot):
     import subprocess
 
-    from flask_move_server import children
+    from flask_move_server.process import children
 
     first = robot()
     switch(first, {"mode": "mapping"})

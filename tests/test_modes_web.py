@@ -9,7 +9,7 @@ import os
 
 import pytest
 
-from flask_move_server.events import EventBus
+from flask_move_server.core.events import EventBus
 from flask_move_server.modes.goal_gate import GoalGate
 from flask_move_server.modes.manager import ModeManager
 from flask_move_server.web import create_app

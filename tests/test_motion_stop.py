@@ -12,7 +12,7 @@ import time
 
 import pytest
 
-from flask_move_server import cli
+from flask_move_server.app import cli
 from flask_move_server.config import DriveConfig, FramesConfig
 from flask_move_server.drive import make_drive
 from flask_move_server.waypoints.store import WaypointStore

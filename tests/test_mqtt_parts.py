@@ -6,10 +6,10 @@ import json
 import jinja2
 import pytest
 
-from flask_move_server.errors import ConfigError
+from flask_move_server.app.server_options import load_config, parse_args
+from flask_move_server.core.errors import ConfigError
 from flask_move_server.mqtt.home_assistant import device_info, discovery
 from flask_move_server.mqtt.robot_state import _status
-from flask_move_server.server_options import load_config, parse_args
 
 ROOT = "flask-move-server/robo"
 DEVICE = device_info("robo", "Robo", "http://robo.local:5000/")

@@ -12,8 +12,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from flask_move_server import names
-from flask_move_server.errors import BadMapName, BadWaypoint, MapExists, WaypointFileError, shown
+from flask_move_server.core import names
+from flask_move_server.core.errors import BadMapName, BadWaypoint, MapExists, WaypointFileError, shown
 from flask_move_server.maps.catalogue import MapCatalogue, check_map_name
 from flask_move_server.maps.mapfile import Grid
 from flask_move_server.waypoints import check_name, make_waypoint

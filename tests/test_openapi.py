@@ -5,7 +5,7 @@ import re
 
 import pytest
 
-from flask_move_server import errors
+from flask_move_server.core import errors
 from flask_move_server.waypoints import NAME_RULE
 from flask_move_server.web import create_app
 from tests.conftest import ROOT

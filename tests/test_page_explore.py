@@ -16,8 +16,8 @@ import pytest
 
 pytest.importorskip("playwright", reason="playwright is not installed (pip install -e '.[test]'; Debian lacks it)")
 
-from flask_move_server.errors import ExploreConflict  # noqa: E402
-from flask_move_server.events import EventBus  # noqa: E402
+from flask_move_server.core.errors import ExploreConflict  # noqa: E402
+from flask_move_server.core.events import EventBus  # noqa: E402
 from flask_move_server.waypoints.store import WaypointStore  # noqa: E402
 from flask_move_server.web import create_app  # noqa: E402
 from flask_move_server.web.events import StreamGate  # noqa: E402

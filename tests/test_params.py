@@ -13,7 +13,7 @@ import pytest
 import yaml
 
 from flask_move_server import config as config_mod
-from flask_move_server.errors import ConfigError
+from flask_move_server.core.errors import ConfigError
 from tests.conftest import ROOT
 from tests.test_launch import VARIANTS, dump_params, launch_config
 

@@ -9,9 +9,9 @@ import actionlib
 import pytest
 from move_base_msgs.msg import MoveBaseAction
 
-from flask_move_server import cli
-from flask_move_server.errors import NavigationFailed
-from flask_move_server.geometry import Goal, Pose2D
+from flask_move_server.app import cli
+from flask_move_server.core.errors import NavigationFailed
+from flask_move_server.core.geometry import Goal, Pose2D
 from tests.conftest import stop_process, wait_for
 from tests.robot_fixtures import no_drive
 from tests.test_sim_e2e import SimServer

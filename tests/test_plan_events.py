@@ -4,7 +4,7 @@ import rospy
 from geometry_msgs.msg import PoseStamped
 from nav_msgs.msg import Path
 
-from flask_move_server.events import EventBus
+from flask_move_server.core.events import EventBus
 from flask_move_server.ros.plan import MAX_POINTS, PlanRelay
 
 

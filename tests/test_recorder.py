@@ -9,7 +9,7 @@ from geometry_msgs.msg import PointStamped, PoseStamped, PoseWithCovarianceStamp
 from tf2_ros import TransformBroadcaster
 from visualization_msgs.msg import Marker, MarkerArray
 
-from flask_move_server.geometry import yaw_to_quaternion
+from flask_move_server.core.geometry import yaw_to_quaternion
 from flask_move_server.recorder.markers import MarkerPublisher
 from flask_move_server.recorder.ros_io import RosSide
 from flask_move_server.recorder.savers import FileSaver

@@ -13,7 +13,7 @@ import rospy
 import yaml
 from geometry_msgs.msg import PointStamped
 
-from flask_move_server.geometry import Pose2D
+from flask_move_server.core.geometry import Pose2D
 from flask_move_server.recorder.savers import FileSaver, ServerSaver, choose_saver
 from flask_move_server.robotctl.api import ExitStatus
 from flask_move_server.waypoints.yaml_format import parse

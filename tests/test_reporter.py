@@ -1,7 +1,7 @@
 """The reporter tells the event bus what changed in the robot, and only that; the plan is thinned."""
 
-from flask_move_server.events import EventBus
-from flask_move_server.reporter import POSE_REFRESH, Reporter
+from flask_move_server.core.events import EventBus
+from flask_move_server.core.reporter import POSE_REFRESH, Reporter
 from flask_move_server.ros.plan import MAX_POINTS, plan_event, thin
 from tests.fake_robot import FakeRobot
 

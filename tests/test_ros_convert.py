@@ -15,7 +15,7 @@ from geometry_msgs.msg import Pose, PoseStamped, TransformStamped, Twist
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from flask_move_server.geometry import Pose2D, compose, inverse, normalize_angle
+from flask_move_server.core.geometry import Pose2D, compose, inverse, normalize_angle
 from flask_move_server.ros.convert import (
     TF_ERRORS,
     pose_from_msg,

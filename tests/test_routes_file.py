@@ -8,7 +8,7 @@ import logging
 
 import pytest
 
-from flask_move_server.errors import BadRoute, UnknownRoute, WaypointFileError, WaypointInUse
+from flask_move_server.core.errors import BadRoute, UnknownRoute, WaypointFileError, WaypointInUse
 from flask_move_server.maps.catalogue import MapCatalogue
 from flask_move_server.maps.marks import MappingMarks
 from flask_move_server.missions.route import Route, make_route

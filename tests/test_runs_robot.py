@@ -58,7 +58,7 @@ def test_a_late_success_of_a_goal_canceled_by_a_pause_does_not_count(runs, move_
 
 
 def test_a_goal_replaced_under_the_run_ends_it_and_its_result_changes_nothing(runs, ready_robot, move_base, store):
-    from flask_move_server.geometry import Goal, Pose2D
+    from flask_move_server.core.geometry import Goal, Pose2D
 
     move_base.delay = 0.5
     run = runs.start(route("kitchen", "office"))

@@ -12,8 +12,8 @@ import tf2_ros
 from geometry_msgs.msg import TransformStamped
 from sensor_msgs.msg import LaserScan
 
-from flask_move_server.events import EventBus
-from flask_move_server.geometry import yaw_to_quaternion
+from flask_move_server.core.events import EventBus
+from flask_move_server.core.geometry import yaw_to_quaternion
 from flask_move_server.ros.scan import MAX_POINTS, RATE, ScanRelay
 from tests.conftest import wait_for
 

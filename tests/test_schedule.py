@@ -11,7 +11,7 @@ from datetime import datetime, timedelta, timezone
 
 import pytest
 
-from flask_move_server.errors import BadRoute
+from flask_move_server.core.errors import BadRoute
 from flask_move_server.missions import schedule
 from flask_move_server.missions.route import Route
 from flask_move_server.missions.scheduler import Scheduler, due_routes

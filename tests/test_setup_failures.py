@@ -8,7 +8,7 @@ a robot whose teleop topic is empty, so rospy refuses its publisher at set-up (V
 import pytest
 import requests
 
-from flask_move_server import cli
+from flask_move_server.app import cli
 from flask_move_server.ros.node import RosNode
 from flask_move_server.waypoints.store import WaypointStore
 from flask_move_server.web import create_app

@@ -2,7 +2,7 @@
 
 import math
 
-from flask_move_server.geometry import Pose2D, along_arc
+from flask_move_server.core.geometry import Pose2D, along_arc
 from flask_move_server.sim.belief import Belief
 
 SIGMA_XY, SIGMA_YAW = 0.5, math.pi / 12  # RViz's 2D Pose Estimate, as the server sends it

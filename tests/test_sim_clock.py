@@ -2,7 +2,7 @@
 
 import pytest
 
-from flask_move_server.geometry import Pose2D
+from flask_move_server.core.geometry import Pose2D
 from flask_move_server.sim.clock import SimClock, overload_text
 from flask_move_server.sim.watches import ProgressWatch
 

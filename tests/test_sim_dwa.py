@@ -12,7 +12,7 @@ import os
 import pytest
 
 from flask_move_server import config as config_mod
-from flask_move_server.errors import ConfigError
+from flask_move_server.core.errors import ConfigError
 from flask_move_server.sim import dwa
 from flask_move_server.sim.runner import planner_limits
 from tests.conftest import ROOT, stop_process

@@ -6,8 +6,8 @@ import os
 import pytest
 import yaml
 
-from flask_move_server.errors import ConfigError, PlanningFailed
-from flask_move_server.geometry import Pose2D
+from flask_move_server.core.errors import ConfigError, PlanningFailed
+from flask_move_server.core.geometry import Pose2D
 from flask_move_server.sim import demo_map, occupancy
 from flask_move_server.sim.body import RobotBody
 from flask_move_server.sim.costmap import LETHAL, Costmap

@@ -15,7 +15,7 @@ import threading
 import pytest
 import requests
 
-from flask_move_server.events import EventBus
+from flask_move_server.core.events import EventBus
 from flask_move_server.ros.map_source import MapSource
 from flask_move_server.sim.map_server import MapServerStandIn
 from flask_move_server.sim.occupancy import OccupancyMap

@@ -11,7 +11,7 @@ from nav_msgs.msg import OccupancyGrid, Odometry
 from tf2_msgs.msg import TFMessage
 
 from flask_move_server.config import FramesConfig
-from flask_move_server.geometry import Pose2D
+from flask_move_server.core.geometry import Pose2D
 from flask_move_server.ros.convert import pose_from_transform, write_pose
 from flask_move_server.sim import occupancy
 from flask_move_server.sim.laser import Laser

@@ -15,11 +15,11 @@ import rospy
 from geometry_msgs.msg import PoseWithCovarianceStamped
 from nav_msgs.msg import OccupancyGrid, Path
 
-from flask_move_server import cli
+from flask_move_server.app import cli
+from flask_move_server.core.errors import BadRequest, StackFailed
+from flask_move_server.core.geometry import Pose2D
 from flask_move_server.drive import make_drive
 from flask_move_server.drive.estop import EStop
-from flask_move_server.errors import BadRequest, StackFailed
-from flask_move_server.geometry import Pose2D
 from flask_move_server.maps import mapfile
 from flask_move_server.ros.convert import write_pose
 from flask_move_server.sim import dwa, occupancy

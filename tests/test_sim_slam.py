@@ -6,8 +6,8 @@ from array import array
 
 import pytest
 
-from flask_move_server.errors import PlanningFailed
-from flask_move_server.geometry import Pose2D
+from flask_move_server.core.errors import PlanningFailed
+from flask_move_server.core.geometry import Pose2D
 from flask_move_server.sim import occupancy
 from flask_move_server.sim.body import RobotBody
 from flask_move_server.sim.costmap import Costmap

@@ -20,7 +20,7 @@ import xmlrpc.client
 import pytest
 
 from flask_move_server.config import ModesConfig
-from flask_move_server.errors import StackFailed
+from flask_move_server.core.errors import StackFailed
 from flask_move_server.maps import mapfile
 from flask_move_server.modes import child, readiness
 from flask_move_server.modes.launched import LaunchedStack
@@ -316,7 +316,7 @@ def test_closing_while_starting_stops_the_start(stack_env):
 
 
 def test_a_stack_left_by_a_dead_server_is_stopped_by_the_next_one():
-    from flask_move_server import children
+    from flask_move_server.process import children
 
     gone = subprocess.Popen(["true"])
     gone.wait()  # a server pid that no longer exists

@@ -14,7 +14,7 @@ import time
 import pytest
 import requests
 
-from flask_move_server import systemd
+from flask_move_server.app import systemd
 from tests.conftest import run_cli, stop_process, wait_for
 
 
@@ -161,6 +161,6 @@ def test_units_installed_before_the_move_still_stop_the_bridges(tmp_path):
 
     config = tmp_path / "robot.yaml"
     config.write_text("drive:\n  backend: none\n")
-    proc = subprocess.run([sys.executable, "-m", "flask_move_server.systemd", "safe-stop", "--config", str(config)],
+    proc = subprocess.run([sys.executable, "-m", "flask_move_server.app.systemd", "safe-stop", "--config", str(config)],
                           capture_output=True, text=True, timeout=60)
     assert proc.returncode == 0 and "no L298N pins" in proc.stdout

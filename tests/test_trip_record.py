@@ -2,8 +2,8 @@
 
 import json
 
-from flask_move_server.geometry import Goal, Pose2D
-from flask_move_server.trip_record import TripRecord
+from flask_move_server.core.geometry import Goal, Pose2D
+from flask_move_server.core.trip_record import TripRecord
 from tests.conftest import wait_for
 
 

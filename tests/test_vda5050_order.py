@@ -11,7 +11,7 @@ import math
 
 import pytest
 
-from flask_move_server.geometry import Pose2D
+from flask_move_server.core.geometry import Pose2D
 from flask_move_server.vda5050 import messages
 from flask_move_server.vda5050.order import (
     IGNORE,

@@ -12,7 +12,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from flask_move_server import waypoints as wpmod
-from flask_move_server.errors import BadWaypoint, UnknownWaypoint, WaypointExists, WaypointFileError
+from flask_move_server.core.errors import BadWaypoint, UnknownWaypoint, WaypointExists, WaypointFileError
 from flask_move_server.waypoints import Waypoint, make_waypoint
 from flask_move_server.waypoints import store as waypoint_store
 from flask_move_server.waypoints.store import WaypointStore

@@ -16,7 +16,7 @@ import time
 
 import pytest
 
-from flask_move_server.errors import WaypointFileError, WaypointsLocked
+from flask_move_server.core.errors import WaypointFileError, WaypointsLocked
 from flask_move_server.waypoints import make_waypoint
 from flask_move_server.waypoints.store import WaypointStore
 from flask_move_server.waypoints.yaml_format import parse

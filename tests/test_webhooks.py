@@ -15,11 +15,12 @@ from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 
 import pytest
 
-from flask_move_server import __version__, cli, config
+from flask_move_server import __version__, config
+from flask_move_server.app import cli
 from flask_move_server.config import WebhookConfig
-from flask_move_server.errors import ConfigError
-from flask_move_server.events import EventBus
-from flask_move_server.happenings import Happenings
+from flask_move_server.core.errors import ConfigError
+from flask_move_server.core.events import EventBus
+from flask_move_server.core.happenings import Happenings
 from flask_move_server.mqtt.webhooks import Webhooks
 from flask_move_server.web import create_app
 from tests.conftest import wait_for

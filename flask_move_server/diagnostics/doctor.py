@@ -10,9 +10,9 @@ pile up holding the server's workers for seconds each.
 import threading
 import time
 
+from flask_move_server.core.errors import DiagnosticsBusy
 from flask_move_server.diagnostics import host
 from flask_move_server.diagnostics.checks import overall, ros_checks
-from flask_move_server.errors import DiagnosticsBusy
 
 
 class _Examination:

@@ -7,7 +7,7 @@ over the named motor backend (``l298n``, ``serial``, ``sim``). Importing this
 package imports neither rospy nor RPi.GPIO.
 """
 
-from flask_move_server.errors import ConfigError
+from flask_move_server.core.errors import ConfigError
 
 
 class NoDrive:

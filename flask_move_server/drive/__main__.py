@@ -15,9 +15,9 @@ import sys
 import threading
 
 from flask_move_server import config as config_mod
-from flask_move_server import launching
+from flask_move_server.app import launching
+from flask_move_server.core.errors import ConfigError, DriveError
 from flask_move_server.drive.backends import NONE, motor_names
-from flask_move_server.errors import ConfigError, DriveError
 
 log = logging.getLogger("flask_move_server")
 

@@ -21,10 +21,10 @@ import logging
 import threading
 import time
 
+from flask_move_server.core.errors import DriveError
 from flask_move_server.drive import messages
 from flask_move_server.drive.motion import Motion
 from flask_move_server.drive.odometry import ENCODERS, OPEN_LOOP, Odometry
-from flask_move_server.errors import DriveError
 
 log = logging.getLogger(__name__)
 

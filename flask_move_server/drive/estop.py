@@ -12,7 +12,7 @@ import datetime
 import logging
 import threading
 
-from flask_move_server.errors import EStopHeld, EStopLatched
+from flask_move_server.core.errors import EStopHeld, EStopLatched
 
 log = logging.getLogger(__name__)
 

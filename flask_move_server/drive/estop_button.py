@@ -14,9 +14,9 @@ RPi.GPIO is imported (drive/gpio.py) only when a pin is configured (``rpi-lgpio`
 import logging
 import threading
 
+from flask_move_server.core.errors import ConfigError, DriveError
 from flask_move_server.drive.gpio import import_gpio as _import_gpio
 from flask_move_server.drive.gpio import use_bcm
-from flask_move_server.errors import ConfigError, DriveError
 
 log = logging.getLogger(__name__)
 

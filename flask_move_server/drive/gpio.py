@@ -4,7 +4,7 @@ Imported only when one of them is configured, so ``import flask_move_server`` ne
 RPi.GPIO. On a Pi 5, ``rpi-lgpio`` provides the same module.
 """
 
-from flask_move_server.errors import DriveError
+from flask_move_server.core.errors import DriveError
 
 INSTALL = ("install RPi.GPIO on a Raspberry Pi 1-4 (sudo apt install python3-rpi.gpio), "
            "rpi-lgpio on a Pi 5 (sudo apt install python3-rpi-lgpio)")

@@ -3,7 +3,7 @@
 Imports neither rospy nor RPi.GPIO, so the maths is tested on its own
 (tests/test_drive_kinematics.py) and shared by the base controller, the
 backends and the simulation. Integrating a pose along an arc is planar maths
-and lives in :mod:`flask_move_server.geometry` (``along_arc``).
+and lives in :mod:`flask_move_server.core.geometry` (``along_arc``).
 
 Conventions (REP-103): linear velocity ``v`` in m/s along x of ``base_link``,
 angular velocity ``w`` in rad/s counter-clockwise; wheel (side) speeds in m/s,
@@ -13,7 +13,7 @@ positive forward; duties are signed fractions of full PWM, -1..1.
 import math
 from dataclasses import dataclass
 
-from flask_move_server.geometry import clamp
+from flask_move_server.core.geometry import clamp
 
 
 @dataclass(frozen=True)

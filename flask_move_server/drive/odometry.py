@@ -9,7 +9,7 @@ so AMCL and robot_localization weigh this odometry for what it is.
 
 import math
 
-from flask_move_server.geometry import Pose2D, along_arc
+from flask_move_server.core.geometry import Pose2D, along_arc
 
 ENCODERS, OPEN_LOOP = "encoders", "open_loop"
 

@@ -13,8 +13,8 @@ import logging
 import sys
 
 from flask_move_server import config as config_mod
+from flask_move_server.core.errors import ConfigError, MoveServerError
 from flask_move_server.drive.backends import l298n
-from flask_move_server.errors import ConfigError, MoveServerError
 
 log = logging.getLogger(__name__)
 

@@ -30,7 +30,8 @@ import math
 import threading
 import time
 
-from flask_move_server.errors import ExploreConflict, MoveServerError, NoPose, UnknownWaypoint
+from flask_move_server.core.errors import ExploreConflict, MoveServerError, NoPose, UnknownWaypoint
+from flask_move_server.core.geometry import Goal, Pose2D
 from flask_move_server.explore.exploration import (
     CANCELED,
     DONE,
@@ -41,7 +42,6 @@ from flask_move_server.explore.exploration import (
     STARTING,
     Exploration,
 )
-from flask_move_server.geometry import Goal, Pose2D
 
 log = logging.getLogger(__name__)
 

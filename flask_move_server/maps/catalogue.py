@@ -6,7 +6,7 @@ made elsewhere can be dropped in) and, beside them, its waypoints
 :class:`~flask_move_server.waypoints.store.WaypointStore`). A map exists when its
 YAML does: :func:`mapfile.save` renames the YAML into place last.
 
-Names follow the waypoint naming rule (:mod:`flask_move_server.names`: letters of any
+Names follow the waypoint naming rule (:mod:`flask_move_server.core.names`: letters of any
 language, in NFC), and since a name becomes a file name, also never start with '.'
 (hidden files, the temporaries of a save), nor end in '.waypoints' (it would be another
 map's waypoints file), nor take more than :data:`MAX_NAME_BYTES` bytes of UTF-8 (a file
@@ -23,9 +23,9 @@ import os
 import threading
 from dataclasses import dataclass
 
-from flask_move_server import bounded_yaml
-from flask_move_server import names as naming
-from flask_move_server.errors import (
+from flask_move_server.config import bounded_yaml
+from flask_move_server.core import names as naming
+from flask_move_server.core.errors import (
     BadMapName,
     ConfigError,
     MapExists,

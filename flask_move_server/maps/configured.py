@@ -20,7 +20,7 @@ import os
 from dataclasses import dataclass
 from typing import Optional
 
-from flask_move_server.errors import BadMapName
+from flask_move_server.core.errors import BadMapName
 
 SOURCE = "configured"  # GET /maps "source" of this map; saved maps say "saved"
 FALLBACK_NAME = "configured"  # when the file's name cannot name a map

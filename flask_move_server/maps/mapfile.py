@@ -29,7 +29,7 @@ from dataclasses import dataclass
 
 import yaml
 
-from flask_move_server.errors import ConfigError, MapExists, MapFileError, shown
+from flask_move_server.core.errors import ConfigError, MapExists, MapFileError, shown
 from flask_move_server.sim import occupancy
 from flask_move_server.waypoints.locked_file import fsync_dir, new_file_mode
 

@@ -21,7 +21,7 @@ import zlib
 from collections import OrderedDict
 from dataclasses import dataclass
 
-from flask_move_server.geometry import Pose2D, compose
+from flask_move_server.core.geometry import Pose2D, compose
 from flask_move_server.maps.mapfile import UNKNOWN_PIXEL, cells_as_bytes, pixel_table
 
 UNKNOWN_CELL = b"\xff"  # -1 as an int8 byte

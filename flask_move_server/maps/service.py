@@ -27,7 +27,7 @@ import os
 import threading
 import uuid
 
-from flask_move_server.errors import (
+from flask_move_server.core.errors import (
     MapConfigured,
     MapExists,
     MapFileError,

@@ -20,7 +20,7 @@ Pure: no rospy.
 import struct
 from dataclasses import dataclass
 
-from flask_move_server.geometry import quaternion_to_yaw
+from flask_move_server.core.geometry import quaternion_to_yaw
 from flask_move_server.maps.mapfile import Grid
 
 _UINT32 = struct.Struct("<I")

@@ -18,7 +18,7 @@ every change is a ``run`` event and is written to the history. Pure: no rospy, n
 import logging
 import threading
 
-from flask_move_server.errors import (
+from flask_move_server.core.errors import (
     EStopLatched,
     MoveServerError,
     RunConflict,
@@ -26,7 +26,7 @@ from flask_move_server.errors import (
     UnknownWaypoint,
     WrongMode,
 )
-from flask_move_server.geometry import Goal, Pose2D
+from flask_move_server.core.geometry import Goal, Pose2D
 from flask_move_server.missions.run import (
     ACTIVE,
     CANCELED,

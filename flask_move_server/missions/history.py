@@ -1,6 +1,6 @@
 """The runs kept across restarts: ``runs.json`` in the state folder, the newest 50.
 
-Every change of a run is written (by a :class:`~flask_move_server.state_writer.StateWriter`,
+Every change of a run is written (by a :class:`~flask_move_server.core.state_writer.StateWriter`,
 atomically, never in the caller's thread). A run still ``running`` or ``paused`` in the file at
 start was cut short by a stop of the server (SIGTERM, a crash, a power cut): it is
 ``interrupted``, and stays so until someone resumes it; the robot never drives off by itself
@@ -12,8 +12,8 @@ import json
 import logging
 import os
 
+from flask_move_server.core.state_writer import StateWriter
 from flask_move_server.missions.run import CANCELED, FAILED, INTERRUPTED, SKIPPED, SUCCEEDED, Run
-from flask_move_server.state_writer import StateWriter
 from flask_move_server.waypoints import locked_file
 
 log = logging.getLogger(__name__)

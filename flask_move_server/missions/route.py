@@ -9,8 +9,8 @@ store's question (it knows the map's waypoints). Pure: no rospy, no Flask, no YA
 import math
 from dataclasses import dataclass, field
 
-from flask_move_server import names
-from flask_move_server.errors import BadRoute, shown
+from flask_move_server.core import names
+from flask_move_server.core.errors import BadRoute, shown
 from flask_move_server.missions import schedule
 
 FIELDS = ("waypoints", "loops", "dwell", "on_failure", "schedule")

@@ -9,7 +9,7 @@ import re
 from dataclasses import dataclass
 from datetime import datetime, time, timedelta
 
-from flask_move_server.errors import BadRoute, shown
+from flask_move_server.core.errors import BadRoute, shown
 
 DAYS = ("mon", "tue", "wed", "thu", "fri", "sat", "sun")  # datetime.weekday() order
 _ENTRY = re.compile(r"(?:(?P<days>[a-z,\-]+)\s+)?(?P<hour>\d{1,2}):(?P<minute>\d{2})")

@@ -15,7 +15,7 @@ import threading
 import time
 from datetime import datetime
 
-from flask_move_server.errors import BadRoute
+from flask_move_server.core.errors import BadRoute
 from flask_move_server.missions import schedule
 
 log = logging.getLogger(__name__)

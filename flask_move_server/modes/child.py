@@ -15,7 +15,7 @@ import subprocess
 import threading
 import time
 
-from flask_move_server import children
+from flask_move_server.process import children
 
 log = logging.getLogger("flask_move_server.stack")
 

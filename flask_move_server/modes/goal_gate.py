@@ -7,7 +7,7 @@ a stack with move_base; one under way when a switch begins is given up with the 
 sent as a switch began (between its admission and its send) is given up at once.
 """
 
-from flask_move_server.errors import NavigationUnavailable, WrongMode
+from flask_move_server.core.errors import NavigationUnavailable, WrongMode
 
 IDLE_REFUSAL = ("The robot is idle: no navigation stack runs, so nothing takes goals. Start navigation on a map "
                 "first: POST /mode {\"mode\": \"navigation\", \"map\": NAME} (robotctl map use NAME; GET /maps "

@@ -21,10 +21,10 @@ import threading
 import time
 from concurrent.futures import ThreadPoolExecutor
 
-from flask_move_server import children
-from flask_move_server.errors import StackFailed
+from flask_move_server.core.errors import StackFailed
 from flask_move_server.modes import child, readiness
 from flask_move_server.modes.targets import MODES
+from flask_move_server.process import children
 
 log = logging.getLogger(__name__)
 

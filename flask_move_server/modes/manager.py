@@ -27,7 +27,7 @@ import logging
 import threading
 import time
 
-from flask_move_server.errors import ModesOff, ModeSwitching, StackFailed, WrongMode
+from flask_move_server.core.errors import ModesOff, ModeSwitching, StackFailed, WrongMode
 from flask_move_server.maps.catalogue import MapCatalogue
 from flask_move_server.modes import relocalizing, state_file
 from flask_move_server.modes.assumed_pose import AssumedPose

@@ -11,7 +11,7 @@ import logging
 import os
 import xmlrpc.client
 
-from flask_move_server.errors import StackFailed
+from flask_move_server.core.errors import StackFailed
 from flask_move_server.ros import master
 
 CALLER = "/flask_move_server_stack"

@@ -9,8 +9,8 @@ by the server is an assumption until the owner confirms or sets the pose (``assu
 read with the waypoints file's own loader. Pure: no rospy, no Flask.
 """
 
-from flask_move_server.errors import UnknownWaypoint, WaypointFileError
-from flask_move_server.geometry import Pose2D
+from flask_move_server.core.errors import UnknownWaypoint, WaypointFileError
+from flask_move_server.core.geometry import Pose2D
 from flask_move_server.waypoints import check_name, suggest
 from flask_move_server.waypoints import locked_file as waypoints_file
 from flask_move_server.waypoints import yaml_format as waypoints_format

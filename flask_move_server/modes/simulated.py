@@ -26,7 +26,7 @@ away; the sim never dies by itself, so ``on_exit`` is kept but never called.
 import logging
 import threading
 
-from flask_move_server.errors import BadRequest, ConfigError, StackFailed
+from flask_move_server.core.errors import BadRequest, ConfigError, StackFailed
 from flask_move_server.modes.targets import MODES
 
 log = logging.getLogger(__name__)

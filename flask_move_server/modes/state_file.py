@@ -10,7 +10,7 @@ rospy, no Flask.
 import json
 import os
 
-from flask_move_server.errors import WaypointFileError
+from flask_move_server.core.errors import WaypointFileError
 from flask_move_server.modes.targets import MODES
 from flask_move_server.waypoints import locked_file as waypoints_file
 

@@ -10,8 +10,8 @@ import os
 from dataclasses import dataclass
 from typing import Optional
 
-from flask_move_server.errors import BadMapName, BadRequest, MapFileError, UnknownMap, shown
-from flask_move_server.geometry import Pose2D
+from flask_move_server.core.errors import BadMapName, BadRequest, MapFileError, UnknownMap, shown
+from flask_move_server.core.geometry import Pose2D
 from flask_move_server.maps import configured as configured_map
 from flask_move_server.maps.catalogue import check_map_name
 from flask_move_server.modes import relocalizing

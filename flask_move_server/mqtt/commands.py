@@ -10,9 +10,9 @@ the Status sensor's attributes; the next command that is taken clears it. Pure: 
 import datetime
 import logging
 
-from flask_move_server.errors import MoveServerError, RunConflict
-from flask_move_server.geometry import Goal, Pose2D
-from flask_move_server.log_limits import Throttled
+from flask_move_server.core.errors import MoveServerError, RunConflict
+from flask_move_server.core.geometry import Goal, Pose2D
+from flask_move_server.process.log_limits import Throttled
 
 log = logging.getLogger(__name__)
 

@@ -21,9 +21,9 @@ import queue
 import threading
 from collections import Counter
 
-from flask_move_server.errors import ConfigError
-from flask_move_server.log_limits import Throttled
+from flask_move_server.core.errors import ConfigError
 from flask_move_server.mqtt import paho_compat
+from flask_move_server.process.log_limits import Throttled
 
 log = logging.getLogger(__name__)
 

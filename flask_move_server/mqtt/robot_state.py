@@ -16,7 +16,7 @@ import logging
 import threading
 import time
 
-from flask_move_server.reporter import battery_news
+from flask_move_server.core.reporter import battery_news
 
 log = logging.getLogger(__name__)
 

@@ -21,10 +21,10 @@ from urllib.parse import urlsplit
 import requests
 
 from flask_move_server import __version__
-from flask_move_server import config_rules as rules
-from flask_move_server.errors import ConfigError
-from flask_move_server.happenings import utc_now_iso
-from flask_move_server.log_limits import Throttled
+from flask_move_server.config import rules
+from flask_move_server.core.errors import ConfigError
+from flask_move_server.core.happenings import utc_now_iso
+from flask_move_server.process.log_limits import Throttled
 
 log = logging.getLogger(__name__)
 

@@ -16,7 +16,7 @@ import signal
 import sys
 import time
 
-from flask_move_server.errors import ClientError, MoveServerError, WaypointFileError
+from flask_move_server.core.errors import ClientError, MoveServerError, WaypointFileError
 from flask_move_server.robotctl.api import ExitStatus
 from flask_move_server.robotctl.text import tolerant_output
 
@@ -51,7 +51,7 @@ def main(argv=None):
 
 
 def _main(argv):
-    from flask_move_server.launching import split_ros_args
+    from flask_move_server.app.launching import split_ros_args
     from flask_move_server.ros import master
 
     argv = sys.argv[1:] if argv is None else list(argv)

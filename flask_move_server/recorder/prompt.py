@@ -12,7 +12,7 @@ import signal
 import threading
 import time
 
-from flask_move_server.errors import MoveServerError
+from flask_move_server.core.errors import MoveServerError
 
 
 @contextlib.contextmanager

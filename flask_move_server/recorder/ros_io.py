@@ -11,7 +11,7 @@ import rospy
 from geometry_msgs.msg import PointStamped, PoseStamped
 
 from flask_move_server.config import FramesConfig
-from flask_move_server.geometry import Pose2D, compose
+from flask_move_server.core.geometry import Pose2D, compose
 from flask_move_server.ros.convert import TF_ERRORS, pose_from_msg, pose_from_transform
 from flask_move_server.ros.pose import PoseTracker
 

@@ -7,7 +7,7 @@ one writer when it answers; otherwise the file is written through the same
 + atomic save), so neither loses the other's edits.
 """
 
-from flask_move_server.errors import ClientError, WaypointFileError
+from flask_move_server.core.errors import ClientError, WaypointFileError
 from flask_move_server.robotctl.api import ExitStatus, RobotClient, waypoint_path
 from flask_move_server.waypoints import make_waypoint
 from flask_move_server.waypoints.store import WaypointStore

@@ -11,7 +11,7 @@ import math
 import re
 import shlex
 
-from flask_move_server.errors import BadRequest, MoveServerError, UnknownWaypoint
+from flask_move_server.core.errors import BadRequest, MoveServerError, UnknownWaypoint
 from flask_move_server.robotctl.text import columns, padded
 from flask_move_server.waypoints import check_name, make_waypoint, suggest
 

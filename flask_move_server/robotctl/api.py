@@ -13,7 +13,7 @@ from urllib.parse import quote, urlsplit, urlunsplit
 
 import requests
 
-from flask_move_server.errors import ClientError
+from flask_move_server.core.errors import ClientError
 
 DEFAULT_URL = "http://robot.local:5000"
 DEFAULT_TIMEOUT = 5.0

@@ -14,8 +14,8 @@ import time
 import traceback
 
 from flask_move_server import __version__
-from flask_move_server.errors import ClientError
-from flask_move_server.goal_endings import failure_sentence, replaced_sentence
+from flask_move_server.core.errors import ClientError
+from flask_move_server.core.goal_endings import failure_sentence, replaced_sentence
 from flask_move_server.robotctl import doctor as client_doctor
 from flask_move_server.robotctl import maps as client_maps
 from flask_move_server.robotctl import modes as client_modes

@@ -12,7 +12,7 @@ import re
 import sys
 import time
 
-from flask_move_server.errors import ClientError
+from flask_move_server.core.errors import ClientError
 from flask_move_server.explore.exploration import MAX_MINUTES
 from flask_move_server.robotctl.api import ExitStatus
 from flask_move_server.robotctl.text import LiveLine, in_robotctl_words, rewritten

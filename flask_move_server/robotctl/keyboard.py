@@ -16,7 +16,7 @@ import termios
 import time
 import tty
 
-from flask_move_server.errors import ClientError
+from flask_move_server.core.errors import ClientError
 from flask_move_server.robotctl.api import ExitStatus
 from flask_move_server.robotctl.robot_clock import RobotClock
 

@@ -9,7 +9,7 @@ goal. ``--no-wait`` returns at once; ``--timeout S`` gives up waiting (exit 12; 
 import sys
 import time
 
-from flask_move_server.errors import ClientError
+from flask_move_server.core.errors import ClientError
 from flask_move_server.robotctl.api import ExitStatus
 from flask_move_server.robotctl.text import LiveLine
 

@@ -9,7 +9,7 @@ older server) gets no ``valid_until``: commands then go as before.
 
 import time
 
-from flask_move_server.errors import ClientError
+from flask_move_server.core.errors import ClientError
 
 
 class RobotClock:

@@ -12,7 +12,7 @@ import re
 import sys
 import time
 
-from flask_move_server.errors import ClientError
+from flask_move_server.core.errors import ClientError
 from flask_move_server.robotctl.api import ExitStatus, dumps, name_path
 from flask_move_server.robotctl.run_text import (
     describe_route,

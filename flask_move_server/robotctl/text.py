@@ -156,7 +156,7 @@ def in_robotctl_words(rewrite, advice=None, name=None):
     """Around a request: a refusal whose code ``advice`` knows is told in its words (``{name}`` filled);
     any other is passed through ``rewrite`` (a text → text function), and re-raised as it was when
     that changes nothing."""
-    from flask_move_server.errors import ClientError
+    from flask_move_server.core.errors import ClientError
 
     try:
         yield

@@ -6,7 +6,7 @@ world and move_base, and the recorder all meet the same few messages
 stand-ins for gmapping, map_server and move_base, a nav_msgs/OccupancyGrid and Path). A
 planar pose keeps x, y and the rotation about z; z, roll and pitch are zero
 on the way out and ignored on the way in. The maths itself is in
-:mod:`flask_move_server.geometry`.
+:mod:`flask_move_server.core.geometry`.
 """
 
 import math
@@ -15,7 +15,7 @@ import tf2_ros
 from geometry_msgs.msg import PoseStamped, TransformStamped, Twist
 from nav_msgs.msg import OccupancyGrid, Path
 
-from flask_move_server.geometry import Pose2D, quaternion_to_yaw, yaw_to_quaternion
+from flask_move_server.core.geometry import Pose2D, quaternion_to_yaw, yaw_to_quaternion
 
 # What a tf lookup raises when the frames are not (yet) connected at that time.
 TF_ERRORS = (tf2_ros.LookupException, tf2_ros.ConnectivityException, tf2_ros.ExtrapolationException)

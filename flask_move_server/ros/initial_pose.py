@@ -16,7 +16,7 @@ import time
 import rospy
 from geometry_msgs.msg import PoseWithCovarianceStamped
 
-from flask_move_server.errors import RosUnavailable
+from flask_move_server.core.errors import RosUnavailable
 from flask_move_server.ros.convert import write_pose
 
 XY_VARIANCE = 0.5 * 0.5

@@ -21,7 +21,7 @@ import time
 
 import rospy
 
-from flask_move_server.errors import MapNotReceived, NoMap
+from flask_move_server.core.errors import MapNotReceived, NoMap
 from flask_move_server.maps.wire import BadMapMessage, decode
 
 log = logging.getLogger(__name__)

@@ -23,9 +23,9 @@ from actionlib_msgs.msg import GoalID, GoalStatus
 from geometry_msgs.msg import PoseStamped
 from move_base_msgs.msg import MoveBaseAction, MoveBaseActionGoal, MoveBaseGoal
 
-from flask_move_server.errors import NavigationUnavailable, RosUnavailable
-from flask_move_server.goal_endings import failure_sentence, replaced_end, replaced_sentence, said_sentence
-from flask_move_server.log_limits import Throttled
+from flask_move_server.core.errors import NavigationUnavailable, RosUnavailable
+from flask_move_server.core.goal_endings import failure_sentence, replaced_end, replaced_sentence, said_sentence
+from flask_move_server.process.log_limits import Throttled
 from flask_move_server.ros import master
 from flask_move_server.ros.action_status import read_status_lightly
 from flask_move_server.ros.convert import pose_from_msg, pose_stamped, write_pose

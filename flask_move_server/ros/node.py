@@ -24,8 +24,8 @@ import sys
 import threading
 import time
 
-from flask_move_server import ast_guard
-from flask_move_server.log_limits import ThrottleFilter
+from flask_move_server.process import ast_guard
+from flask_move_server.process.log_limits import ThrottleFilter
 from flask_move_server.ros import master
 
 log = logging.getLogger(__name__)

@@ -7,8 +7,8 @@ import rospy
 import tf2_ros
 from geometry_msgs.msg import PoseWithCovarianceStamped
 
-from flask_move_server.errors import NoPose
-from flask_move_server.geometry import Pose2D
+from flask_move_server.core.errors import NoPose
+from flask_move_server.core.geometry import Pose2D
 from flask_move_server.ros.convert import TF_ERRORS, pose_from_msg, pose_from_transform
 
 

@@ -13,8 +13,8 @@ import time
 
 from geometry_msgs.msg import Twist
 
-from flask_move_server.errors import RosUnavailable
-from flask_move_server.geometry import clamp
+from flask_move_server.core.errors import RosUnavailable
+from flask_move_server.core.geometry import clamp
 from flask_move_server.ros.convert import twist
 from flask_move_server.ros.direct import direct_publisher
 

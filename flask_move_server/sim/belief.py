@@ -15,7 +15,7 @@ estimate. A robot at rest never converges (AMCL does not update without motion).
 import math
 import threading
 
-from flask_move_server.geometry import Pose2D, compose, interpolate, inverse, normalize_angle
+from flask_move_server.core.geometry import Pose2D, compose, interpolate, inverse, normalize_angle
 
 IDENTITY = Pose2D(0.0, 0.0, 0.0)
 SPREAD = 2.0  # standard deviations of the estimate within which the truth is inside the particle cloud

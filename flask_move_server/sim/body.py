@@ -11,7 +11,7 @@ bumper-stopped base would). Pure: no rospy.
 import math
 import threading
 
-from flask_move_server.geometry import Pose2D, along_arc
+from flask_move_server.core.geometry import Pose2D, along_arc
 
 
 class RobotBody:

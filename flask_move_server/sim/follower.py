@@ -11,7 +11,7 @@ Pure: no rospy; fed with poses, it returns velocities.
 import math
 from dataclasses import dataclass
 
-from flask_move_server.geometry import clamp, normalize_angle
+from flask_move_server.core.geometry import clamp, normalize_angle
 
 FOLLOW, TURN_TO_GOAL, DONE = "follow", "turn_to_goal", "done"
 

@@ -26,7 +26,7 @@ import rospy
 import tf2_ros
 from nav_msgs.msg import MapMetaData, OccupancyGrid, Odometry
 
-from flask_move_server.geometry import compose, inverse, normalize_angle
+from flask_move_server.core.geometry import compose, inverse, normalize_angle
 from flask_move_server.ros import convert, own_topics
 from flask_move_server.ros.convert import pose_from_msg, transform_message
 

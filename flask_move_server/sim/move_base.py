@@ -39,7 +39,7 @@ from geometry_msgs.msg import PoseStamped, Twist
 from move_base_msgs.msg import MoveBaseAction, MoveBaseActionGoal, MoveBaseFeedback, MoveBaseResult
 from nav_msgs.msg import Odometry, Path
 
-from flask_move_server.errors import PlanningFailed
+from flask_move_server.core.errors import PlanningFailed
 from flask_move_server.ros import own_topics
 from flask_move_server.ros.convert import path_message, pose_from_msg, pose_stamped, twist
 from flask_move_server.sim import dwa

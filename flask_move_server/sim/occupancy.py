@@ -9,12 +9,12 @@ a cell value the way map_server computes it: ``p = (255 - pixel) / 255``
 the top of the map, row 0 of the grid the bottom (``origin`` is the pose of
 the lower-left cell), as in ``nav_msgs/OccupancyGrid``.
 
-The YAML is read within bounds (:mod:`flask_move_server.bounded_yaml`: at most
+The YAML is read within bounds (:mod:`flask_move_server.config.bounded_yaml`: at most
 :data:`MAX_YAML_BYTES`, no anchors or aliases, no deep nesting) and the image must lie in
 the YAML's own folder (:func:`image_path`): a map file may be dropped in by anyone.
 
 Pure: no rospy. A bad file raises ConfigError naming the file, key and a short reason
-(a value is quoted by :func:`~flask_move_server.errors.shown`: at most 64 characters).
+(a value is quoted by :func:`~flask_move_server.core.errors.shown`: at most 64 characters).
 """
 
 import math
@@ -22,8 +22,8 @@ import os
 import stat
 from dataclasses import dataclass
 
-from flask_move_server import bounded_yaml
-from flask_move_server.errors import ConfigError, shown
+from flask_move_server.config import bounded_yaml
+from flask_move_server.core.errors import ConfigError, shown
 
 OCCUPIED, FREE, UNKNOWN = 100, 0, -1
 MAX_CELLS = 6000 * 6000  # past a gmapping canvas (4000 x 4000); a bigger image would not fit a Pi's memory

@@ -13,7 +13,7 @@ import heapq
 import math
 from array import array
 
-from flask_move_server.errors import PlanningFailed
+from flask_move_server.core.errors import PlanningFailed
 from flask_move_server.sim.costmap import LETHAL
 
 SQRT2 = math.sqrt(2.0)

@@ -15,9 +15,9 @@ import sys
 import time
 from urllib.parse import urlparse
 
-from flask_move_server.children import die_with_parent
-from flask_move_server.errors import ConfigError
-from flask_move_server.geometry import Pose2D
+from flask_move_server.core.errors import ConfigError
+from flask_move_server.core.geometry import Pose2D
+from flask_move_server.process.children import die_with_parent
 from flask_move_server.ros import master
 
 log = logging.getLogger(__name__)

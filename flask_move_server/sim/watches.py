@@ -8,7 +8,7 @@ obstacle across the path still to drive (move_base replans on its growing costma
 :class:`ProgressWatch` tells when the robot has stopped making progress (move_base aborts).
 """
 
-from flask_move_server.geometry import normalize_angle
+from flask_move_server.core.geometry import normalize_angle
 
 
 class ReplanWatch:

@@ -38,7 +38,7 @@ from geometry_msgs.msg import PoseWithCovarianceStamped
 from nav_msgs.msg import Odometry
 from sensor_msgs.msg import LaserScan
 
-from flask_move_server.geometry import Pose2D, compose, interpolate, inverse
+from flask_move_server.core.geometry import Pose2D, compose, interpolate, inverse
 from flask_move_server.ros.convert import pose_from_msg, transform_message, write_pose
 from flask_move_server.sim.belief import Belief
 from flask_move_server.sim.clock import SimClock, overload_text

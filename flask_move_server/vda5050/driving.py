@@ -10,8 +10,8 @@ An order that ends on the robot (``/stop``, the e-stop, a goal, a mode switch) i
 
 import logging
 
-from flask_move_server.errors import MoveServerError, RunConflict
-from flask_move_server.geometry import Pose2D
+from flask_move_server.core.errors import MoveServerError, RunConflict
+from flask_move_server.core.geometry import Pose2D
 from flask_move_server.missions.route import Route
 from flask_move_server.vda5050.order import NEW, OrderBook, Refusal, stops_of, within_reach
 

@@ -7,8 +7,8 @@ action type FAILS, saying so. One action failing never keeps the next of the mes
 
 import logging
 
-from flask_move_server.errors import MoveServerError
-from flask_move_server.geometry import Pose2D
+from flask_move_server.core.errors import MoveServerError
+from flask_move_server.core.geometry import Pose2D
 from flask_move_server.vda5050.messages import MAX_ACTIONS
 from flask_move_server.vda5050.order import HEADER, Refusal, finite
 

@@ -22,7 +22,7 @@ import copy
 import math
 from dataclasses import dataclass
 
-from flask_move_server.geometry import Pose2D
+from flask_move_server.core.geometry import Pose2D
 
 HEADER = (("headerId", int), ("timestamp", str), ("version", str), ("manufacturer", str), ("serialNumber", str))
 MAX_NODES = 200  # nodes in one order message (the factsheet says so)

@@ -7,7 +7,7 @@ action's end together with what it changed (a ``cancelOrder`` FINISHED and the o
 
 import logging
 
-from flask_move_server.log_limits import Throttled
+from flask_move_server.process.log_limits import Throttled
 
 log = logging.getLogger(__name__)
 

@@ -10,10 +10,10 @@ import difflib
 import math
 from dataclasses import dataclass
 
-from flask_move_server import names
-from flask_move_server.errors import BadWaypoint, shown
+from flask_move_server.core import names
+from flask_move_server.core.errors import BadWaypoint, shown
 
-NAME_RULE = names.RULE  # one rule for every name a person gives: see flask_move_server.names
+NAME_RULE = names.RULE  # one rule for every name a person gives: see flask_move_server.core.names
 # Bounds far beyond any building, but small enough that every formula on a pose stays finite and
 # exact (1e308 overflows distances): x, y in metres, yaw in radians.
 POSITION_LIMIT = 1e6

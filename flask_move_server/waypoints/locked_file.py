@@ -23,7 +23,7 @@ import stat
 import tempfile
 import time
 
-from flask_move_server.errors import WaypointFileError, WaypointsLocked
+from flask_move_server.core.errors import WaypointFileError, WaypointsLocked
 
 log = logging.getLogger(__name__)
 

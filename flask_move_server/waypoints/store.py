@@ -25,7 +25,7 @@ import os
 import shlex
 import threading
 
-from flask_move_server.errors import (
+from flask_move_server.core.errors import (
     BadRoute,
     UnknownRoute,
     UnknownWaypoint,

@@ -21,7 +21,7 @@ import re
 
 import yaml
 
-from flask_move_server.errors import BadRoute, BadWaypoint, WaypointFileError, shown
+from flask_move_server.core.errors import BadRoute, BadWaypoint, WaypointFileError, shown
 from flask_move_server.missions.route import make_route
 from flask_move_server.waypoints import (
     NAME_RULE,

@@ -7,9 +7,9 @@ module global, so several apps (tests) can live in one process.
 from flask import Blueprint, Flask, Response, send_from_directory
 from flask.sessions import NullSession, SessionInterface
 
-from flask_move_server import ast_guard
-from flask_move_server.events import EventBus
+from flask_move_server.core.events import EventBus
 from flask_move_server.modes.manager import ModeManager
+from flask_move_server.process import ast_guard
 from flask_move_server.web import auth, error_handlers, guard
 from flask_move_server.web.diagnostics import diagnostics_api
 from flask_move_server.web.estop import estop

@@ -4,7 +4,7 @@ import hmac
 
 from flask import request
 
-from flask_move_server.errors import Unauthorized
+from flask_move_server.core.errors import Unauthorized
 
 OPEN_ENDPOINTS = frozenset({"api.health", "openapi.openapi", "static", "page.index"})
 

@@ -5,7 +5,7 @@ import math
 
 from flask import current_app, request
 
-from flask_move_server.errors import BadRequest, BodyTooLarge, shown
+from flask_move_server.core.errors import BadRequest, BodyTooLarge, shown
 
 
 def _no_constants(name):

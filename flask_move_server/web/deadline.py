@@ -14,7 +14,7 @@ clock or milliseconds sent by accident), so a client cannot believe it is protec
 
 import time
 
-from flask_move_server.errors import BadRequest, CommandLate
+from flask_move_server.core.errors import BadRequest, CommandLate
 from flask_move_server.web.body import number
 
 FIELD = "valid_until"

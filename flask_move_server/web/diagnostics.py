@@ -10,7 +10,7 @@ import math
 
 from flask import Blueprint, current_app, jsonify, request
 
-from flask_move_server.errors import BadRequest, shown
+from flask_move_server.core.errors import BadRequest, shown
 
 diagnostics_api = Blueprint("diagnostics", __name__)
 SECONDS = (0.5, 10.0)

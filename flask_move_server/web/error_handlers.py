@@ -11,7 +11,7 @@ import logging
 from flask import jsonify, request
 from werkzeug.exceptions import HTTPException
 
-from flask_move_server import errors
+from flask_move_server.core import errors
 
 log = logging.getLogger(__name__)
 

@@ -27,7 +27,7 @@ import time
 
 from flask import Blueprint, Response, current_app, request
 
-from flask_move_server.errors import TooManyStreams
+from flask_move_server.core.errors import TooManyStreams
 from flask_move_server.web.deadline import robot_clock
 
 events_api = Blueprint("events", __name__)

@@ -9,7 +9,7 @@ with null. Progress is told as ``explore`` events on ``GET /events`` by the expl
 
 from flask import Blueprint, current_app, jsonify
 
-from flask_move_server.errors import BadRequest, ExploreConflict, shown
+from flask_move_server.core.errors import BadRequest, ExploreConflict, shown
 from flask_move_server.explore.exploration import MAX_MINUTES, THEN
 from flask_move_server.maps.catalogue import check_map_name
 from flask_move_server.web.body import json_object, number, text

@@ -23,7 +23,7 @@ from urllib.parse import urlsplit
 
 from flask import request
 
-from flask_move_server.errors import ForbiddenOrigin, UnknownHost
+from flask_move_server.core.errors import ForbiddenOrigin, UnknownHost
 
 ANY_HOST = "*"
 

@@ -9,7 +9,7 @@ without a byte of image while the map is unchanged.
 
 from flask import Blueprint, Response, current_app, jsonify, request
 
-from flask_move_server.errors import BadRequest, NoMap, NoPose, StackFailed
+from flask_move_server.core.errors import BadRequest, NoMap, NoPose, StackFailed
 from flask_move_server.web.body import json_object, number, text
 from flask_move_server.web.modes import longest_wait
 

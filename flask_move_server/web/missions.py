@@ -9,7 +9,7 @@ import datetime
 
 from flask import Blueprint, current_app, jsonify
 
-from flask_move_server.errors import BadRequest, RunConflict
+from flask_move_server.core.errors import BadRequest, RunConflict
 from flask_move_server.missions import schedule
 from flask_move_server.missions.route import FIELDS, check_route_name, make_route
 from flask_move_server.web.body import json_object, text

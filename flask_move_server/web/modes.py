@@ -8,8 +8,8 @@ or the stack's error (503 ``stack_failed``) when it failed.
 
 from flask import Blueprint, current_app, jsonify
 
-from flask_move_server.errors import BadRequest, shown
-from flask_move_server.geometry import Pose2D
+from flask_move_server.core.errors import BadRequest, shown
+from flask_move_server.core.geometry import Pose2D
 from flask_move_server.waypoints import YAW_LIMIT, check_coordinate
 from flask_move_server.web.body import json_object, number, text
 

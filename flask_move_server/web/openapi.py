@@ -478,7 +478,7 @@ def _json(schema, text="ok"):
 
 
 def _name(text=None):
-    """A name (flask_move_server.names): its ASCII characters exactly, any other as a letter, digit or '’' may be.
+    """A name (flask_move_server.core.names): its ASCII characters exactly, any other as a letter, digit or '’' may be.
 
     A pattern cannot say "a letter of any language" everywhere (``\\p{L}`` is not in every regex
     dialect that reads it), so the description (names.RULE) says the rest, '..' and '.' alone too.

@@ -7,8 +7,8 @@ store, and shape the JSON answer. They know nothing of rospy.
 from flask import Blueprint, current_app, jsonify
 from werkzeug.routing import PathConverter
 
-from flask_move_server.errors import BadRequest
-from flask_move_server.geometry import Goal, Pose2D
+from flask_move_server.core.errors import BadRequest
+from flask_move_server.core.geometry import Goal, Pose2D
 from flask_move_server.waypoints import YAW_LIMIT, check_coordinate, check_name, make_waypoint
 from flask_move_server.web.body import json_object, number, text
 from flask_move_server.web.deadline import FIELD, check_deadline, robot_clock

@@ -9,7 +9,7 @@ themselves with :func:`register`; :func:`create` builds one by name.
 
 import importlib
 
-from flask_move_server.errors import DriveError
+from flask_move_server.core.errors import DriveError
 
 # ``drive.backend: none``: another node drives the base, so no backend is built (drive.NoDrive).
 NONE = "none"

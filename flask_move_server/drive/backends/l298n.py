@@ -14,10 +14,10 @@ RPi.GPIO is imported (drive/gpio.py) when this backend is chosen: on a Pi 5 the
 import logging
 import threading
 
+from flask_move_server.core.errors import ConfigError, DriveError
 from flask_move_server.drive.backends import MotorBackend, register
 from flask_move_server.drive.gpio import import_gpio as _import_gpio
 from flask_move_server.drive.gpio import use_bcm
-from flask_move_server.errors import ConfigError, DriveError
 
 log = logging.getLogger(__name__)
 

@@ -19,9 +19,8 @@ import signal
 import sys
 import time
 
-from flask_move_server import server_options
-from flask_move_server.errors import ConfigError, DriveError, WaypointFileError
-from flask_move_server.launching import (
+from flask_move_server.app import server_options
+from flask_move_server.app.launching import (
     EXIT_CONFIG,
     EXIT_FAILURE,
     EXIT_MASTER_REPLACED,
@@ -30,6 +29,7 @@ from flask_move_server.launching import (
     setup_logging,
     split_ros_args,
 )
+from flask_move_server.core.errors import ConfigError, DriveError, WaypointFileError
 
 log = logging.getLogger("flask_move_server")
 
@@ -52,7 +52,7 @@ class Server:
         self._stack = contextlib.ExitStack()
 
     def start(self):
-        from flask_move_server.events import EventBus
+        from flask_move_server.core.events import EventBus
         from flask_move_server.http.server import HttpServer
         from flask_move_server.waypoints.store import WaypointStore
         from flask_move_server.web import create_app
@@ -135,7 +135,7 @@ class Server:
     def _build_happenings(self, stack, robot):
         """What the robot did, by name (arrived, failed, run_done, estop, explore_done), for MQTT and for
         the webhooks ``webhooks:`` lists (POSTed from a queue of their own); both closed before the robot."""
-        from flask_move_server.happenings import Happenings
+        from flask_move_server.core.happenings import Happenings
 
         happenings = Happenings(robot, self.events)
         stack.callback(happenings.close)
@@ -204,7 +204,7 @@ class Server:
     def _report(self, stack, robot):
         """The robot's state (pose, status, e-stop, move_base's plan, the laser scan) told on the event bus
         for GET /events."""
-        from flask_move_server.reporter import Reporter
+        from flask_move_server.core.reporter import Reporter
         from flask_move_server.ros.plan import PlanRelay
         from flask_move_server.ros.scan import ScanRelay
 
@@ -263,7 +263,7 @@ class Server:
     def _keep_trips(self, stack, robot):
         """The goal under way kept in ``trip.json`` of the state folder: after a restart, the
         navigation status says which trip was interrupted (the robot does not resume it)."""
-        from flask_move_server.trip_record import TripRecord
+        from flask_move_server.core.trip_record import TripRecord
 
         trips = TripRecord(os.path.join(self.config.state_folder(), "trip.json"))
         stack.callback(trips.close)
@@ -322,7 +322,7 @@ class Server:
 
     def serve(self):
         """Serve until SIGTERM/SIGINT (or :meth:`fatal`); returns the exit status."""
-        from flask_move_server import systemd
+        from flask_move_server.app import systemd
 
         # Under systemd: READY=1 once /health answers, WATCHDOG=1 while it does, STOPPING=1 first on close.
         self._stack.callback(systemd.Supervisor(self.config.server.host, self.port).start().close)
@@ -369,7 +369,7 @@ class Server:
 
 def build_robot(config, node, drive, estop=None):
     """The Robot facade over ``node``: pose tracker, navigator, teleop, ``drive``, the e-stop latch, the battery."""
-    from flask_move_server.robot import Robot
+    from flask_move_server.core.robot import Robot
     from flask_move_server.ros.battery import BatteryMonitor
     from flask_move_server.ros.navigator import Navigator
     from flask_move_server.ros.pose import PoseTracker
@@ -384,7 +384,7 @@ def build_robot(config, node, drive, estop=None):
 
 def dock_position(store):
     """(x, y) of the ``dock`` waypoint of the waypoints in use (the active map's), or None without one."""
-    from flask_move_server.errors import UnknownWaypoint
+    from flask_move_server.core.errors import UnknownWaypoint
 
     try:
         dock = store.get("dock")

@@ -10,7 +10,7 @@ import logging
 import os
 import stat
 
-from flask_move_server.errors import ConfigError
+from flask_move_server.core.errors import ConfigError
 
 log = logging.getLogger(__name__)
 

@@ -1,7 +1,7 @@
 """The reporter: what the robot is doing, told on the event bus as it changes.
 
 One thread samples the Robot facade (``robot.status()``) ``rate`` times a second and
-publishes, on the :class:`~flask_move_server.events.EventBus`:
+publishes, on the :class:`~flask_move_server.core.events.EventBus`:
 
 - ``pose`` (``{"x", "y", "yaw", "frame", "age", "source"}`` as ``/status`` shows it, or None)
   when the robot moved (1 mm or 0.001 rad), when it became known or unknown, and once a

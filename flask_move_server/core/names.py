@@ -12,7 +12,7 @@ file). Pure: the standard library only.
 
 import unicodedata
 
-from flask_move_server.errors import BadRequest, shown
+from flask_move_server.core.errors import BadRequest, shown
 
 MAX_LENGTH = 64
 PUNCTUATION = "_-. '\u2019"  # the apostrophes: ' (U+0027) and ’ (U+2019)

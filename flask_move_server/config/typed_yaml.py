@@ -4,7 +4,7 @@ Generic: it knows dataclasses, ``Optional``, ``Literal``, lists, dicts and scala
 robots. A field may carry metadata the loader acts on: ``check`` (a function returning a reason
 or None, see :func:`checked`; a key whose default fails its check must be given), ``path``
 (relative to the file's folder, see :func:`path_field`) and ``internal`` (not a key of the file). Every problem is a
-:class:`~flask_move_server.errors.ConfigError` naming the source, the dotted key and the reason;
+:class:`~flask_move_server.core.errors.ConfigError` naming the source, the dotted key and the reason;
 an unknown key suggests the closest known one, because a typo must not fall back to a default.
 """
 
@@ -16,7 +16,7 @@ import typing
 from dataclasses import field
 from typing import Any, Dict, List, Literal, get_args, get_origin
 
-from flask_move_server.errors import ConfigError
+from flask_move_server.core.errors import ConfigError
 
 
 def checked(check, **kw):

@@ -14,7 +14,7 @@ import sys
 import time
 
 from flask_move_server import config as config_mod
-from flask_move_server.errors import ConfigError
+from flask_move_server.core.errors import ConfigError
 
 log = logging.getLogger("flask_move_server")
 

@@ -6,14 +6,14 @@ stands still afterwards, and the page used to say "tap a place" as if nothing ha
 ends; one found at start means the trip was interrupted, and the navigation status says so
 until the next goal. The robot never drives off by itself after a restart.
 
-Written by a :class:`~flask_move_server.state_writer.StateWriter` (its own thread, atomically),
+Written by a :class:`~flask_move_server.core.state_writer.StateWriter` (its own thread, atomically),
 never in the request that sends the goal: ``/goto`` answers in a millisecond. Pure: no rospy, no Flask.
 """
 
 import json
 import logging
 
-from flask_move_server.state_writer import StateWriter
+from flask_move_server.core.state_writer import StateWriter
 
 log = logging.getLogger(__name__)
 

@@ -4,7 +4,7 @@ Every key has a default that suits the reference robot (Pi 4, two L298N
 bridges, skid-steer, RPLIDAR A1), so an empty file, or no file at all, is a
 valid configuration. Validation happens once, at start-up: a wrong type, a
 value out of range or an unknown key (a typo must not silently fall back to a
-default) raises :class:`~flask_move_server.errors.ConfigError` naming the
+default) raises :class:`~flask_move_server.core.errors.ConfigError` naming the
 file, the key and the reason. Pure: imports neither rospy nor Flask.
 
 This module is the schema; the rules its values are checked by are config_rules.py, the generic
@@ -18,12 +18,9 @@ from typing import List, Literal, Optional
 
 import yaml
 
-from flask_move_server import access
-from flask_move_server import config_rules as rules
-from flask_move_server.access import TOKEN_ENV, check_serving_policy  # noqa: F401 (config.<name> for the wiring)
-from flask_move_server.drive.backends import names as backend_names
-from flask_move_server.errors import ConfigError
-from flask_move_server.typed_yaml import (  # noqa: F401 (as_plain, merge: config.<name> for the wiring)
+from flask_move_server.config import access, rules
+from flask_move_server.config.access import TOKEN_ENV, check_serving_policy  # noqa: F401 (config.<name> for the wiring)
+from flask_move_server.config.typed_yaml import (  # noqa: F401 (as_plain, merge: config.<name> for the wiring)
     as_plain,
     build,
     checked,
@@ -31,6 +28,8 @@ from flask_move_server.typed_yaml import (  # noqa: F401 (as_plain, merge: confi
     merge,
     path_field,
 )
+from flask_move_server.core.errors import ConfigError
+from flask_move_server.drive.backends import names as backend_names
 
 # Every motor backend the registry knows (drive/backends), without importing any of them.
 MotorBackendName = Literal[tuple(backend_names())]

@@ -15,7 +15,7 @@ import os
 import threading
 import time
 
-from flask_move_server.errors import WaypointFileError
+from flask_move_server.core.errors import WaypointFileError
 from flask_move_server.waypoints import locked_file
 
 log = logging.getLogger(__name__)

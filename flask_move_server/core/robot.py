@@ -7,8 +7,8 @@ both and zeroes the velocity, the teleop deadman halts the motors at once, the
 e-stop latch stops everything and refuses goals and teleop until released).
 """
 
+from flask_move_server.core.errors import NavigationFailed, NavigationUnavailable, ShuttingDown
 from flask_move_server.drive.estop import EStop
-from flask_move_server.errors import NavigationFailed, NavigationUnavailable, ShuttingDown
 
 _SHUTTING_DOWN = "The server is shutting down: the robot was stopped. Send the command again once it is back."
 STOPPED = "Stopped (POST /stop)."

@@ -12,9 +12,9 @@ import os
 
 from flask_move_server import __version__
 from flask_move_server import config as config_mod
+from flask_move_server.app.launching import LOG_LEVELS, apply_private_params, ros_node_name
+from flask_move_server.core.errors import ConfigError
 from flask_move_server.drive.backends import names as motor_backend_names
-from flask_move_server.errors import ConfigError
-from flask_move_server.launching import LOG_LEVELS, apply_private_params, ros_node_name
 
 
 def parse_args(argv):

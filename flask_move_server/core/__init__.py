@@ -1,0 +1,1 @@
+"""What every room uses: the Robot facade, its events and happenings, errors, geometry, names, state files."""
