@@ -43,7 +43,7 @@ def of_config(config):
         return None
     path = config.sim.map
     if not path:
-        from flask_move_server.sim.runner import default_map  # the sim's module, only when it runs
+        from flask_move_server.sim.demo_map import default_map  # the sim's, only when it runs
 
         path = default_map()
     return ConfiguredMap(name_of(path), os.path.abspath(path))

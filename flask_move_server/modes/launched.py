@@ -30,7 +30,7 @@ log = logging.getLogger(__name__)
 
 
 def _sim_default_map():
-    from flask_move_server.sim.runner import default_map
+    from flask_move_server.sim.demo_map import default_map
 
     return default_map()
 

@@ -4,7 +4,9 @@ Regenerates ``config/maps/demo.pgm`` and ``demo.yaml`` (map_server format, as
 ``map_saver`` writes them: 254 free, 0 occupied, 205 unknown). The flat is
 12 m × 8 m at 5 cm per cell: a living room with the robot's dock at the map
 origin, a kitchen-diner with a locked store room, an office and a bedroom,
-joined by 0.9 m doors, with furniture. Pure: no rospy.
+joined by 0.9 m doors, with furniture. Where the shipped files are (:func:`default_map`, the
+config folder beside them) is here too, for every part that falls back on them: the sim, the
+configured map, the launched stack. Pure: no rospy.
 """
 
 import math
@@ -88,6 +90,24 @@ def write(out_dir, name="demo"):
     with open(path, "w", encoding="utf-8") as f:
         f.write(map_yaml(name + ".pgm"))
     return path
+
+
+def default_map():
+    """The shipped demo map: config/maps/demo.yaml in the checkout (or the installed share dir)."""
+    here = os.path.dirname(os.path.abspath(__file__))
+    candidates = [
+        os.path.join(here, "..", "..", "config", "maps", "demo.yaml"),
+        os.path.join(sys.prefix, "share", "flask_move_server", "config", "maps", "demo.yaml"),
+    ]
+    for path in candidates:
+        if os.path.exists(path):
+            return os.path.normpath(path)
+    return os.path.normpath(candidates[0])
+
+
+def default_navigation_config():
+    """The folder of the shipped move_base.yaml and dwa_local_planner.yaml (the demo map's config/)."""
+    return os.path.dirname(os.path.dirname(default_map()))
 
 
 def main(argv=None):

@@ -11,7 +11,6 @@ import logging
 import os
 import shutil
 import subprocess
-import sys
 import time
 from urllib.parse import urlparse
 
@@ -19,23 +18,11 @@ from flask_move_server.core.errors import ConfigError
 from flask_move_server.core.geometry import Pose2D
 from flask_move_server.process.children import die_with_parent
 from flask_move_server.ros import master
+from flask_move_server.sim.demo_map import default_map, default_navigation_config
 
 log = logging.getLogger(__name__)
 
 LOCAL_HOSTS = ("localhost", "127.0.0.1", "::1", "")
-
-
-def default_map():
-    """The shipped demo map: config/maps/demo.yaml in the checkout (or the installed share dir)."""
-    here = os.path.dirname(os.path.abspath(__file__))
-    candidates = [
-        os.path.join(here, "..", "..", "config", "maps", "demo.yaml"),
-        os.path.join(sys.prefix, "share", "flask_move_server", "config", "maps", "demo.yaml"),
-    ]
-    for path in candidates:
-        if os.path.exists(path):
-            return os.path.normpath(path)
-    return os.path.normpath(candidates[0])
 
 
 class Simulation:
@@ -101,11 +88,6 @@ class Simulation:
         for part in (self.stacks, self.move_base, self.battery, self.world):
             if part is not None:
                 part.close()
-
-
-def default_navigation_config():
-    """The folder of the shipped move_base.yaml and dwa_local_planner.yaml (the demo map's config/)."""
-    return os.path.dirname(os.path.dirname(default_map()))
 
 
 def planner_limits(sim):
