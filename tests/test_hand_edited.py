@@ -322,10 +322,10 @@ def test_a_put_over_the_api_on_a_commented_file_keeps_it_as_bak(client, robot_co
 def test_nesting_is_counted_before_yaml_reads_the_text_and_brackets_in_names_or_comments_are_not():
     """Thousands of brackets are refused by a count over the brackets alone: PyYAML's pure-Python
     scanner looked ahead over all of them first (125 ms for 10 KB, the drive loop held up)."""
-    from flask_move_server.waypoints import safe_yaml
+    from flask_move_server.config import guarded_yaml
 
     deep = "waypoints:\n  k: " + "[" * 5000 + "]" * 5000 + "\n"
-    with pytest.raises(safe_yaml.Unreadable, match=r"^line 2: nested more than 16 levels deep$"):
-        safe_yaml.load(deep)
+    with pytest.raises(guarded_yaml.Unreadable, match=r"^line 2: nested more than 16 levels deep$"):
+        guarded_yaml.load(deep)
     quoted = 'waypoints:\n  "' + "[" * 40 + 'x": [1, 2, 3]  # ' + "{" * 40 + "\n"
-    assert safe_yaml.load(quoted).data == {"waypoints": {"[" * 40 + "x": [1, 2, 3]}}
+    assert guarded_yaml.load(quoted).data == {"waypoints": {"[" * 40 + "x": [1, 2, 3]}}

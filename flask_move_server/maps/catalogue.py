@@ -23,7 +23,7 @@ import os
 import threading
 from dataclasses import dataclass
 
-from flask_move_server.config import bounded_yaml
+from flask_move_server.config import guarded_yaml
 from flask_move_server.core import names as naming
 from flask_move_server.core.errors import (
     BadMapName,
@@ -338,8 +338,8 @@ def _raw_meta(yaml_path):
     """The YAML's mapping as written (extra keys kept), checked by map_server's rules first."""
     _read_meta(yaml_path)
     try:
-        return bounded_yaml.read(yaml_path, occupancy.MAX_YAML_BYTES)
-    except bounded_yaml.YamlRefused as exc:  # changed since it was checked
+        return guarded_yaml.read(yaml_path, occupancy.MAX_YAML_BYTES)
+    except guarded_yaml.Unreadable as exc:  # changed since it was checked
         raise ConfigError(yaml_path, None, str(exc)) from None
 
 

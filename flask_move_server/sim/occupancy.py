@@ -9,7 +9,7 @@ a cell value the way map_server computes it: ``p = (255 - pixel) / 255``
 the top of the map, row 0 of the grid the bottom (``origin`` is the pose of
 the lower-left cell), as in ``nav_msgs/OccupancyGrid``.
 
-The YAML is read within bounds (:mod:`flask_move_server.config.bounded_yaml`: at most
+The YAML is read within bounds (:mod:`flask_move_server.config.guarded_yaml`: at most
 :data:`MAX_YAML_BYTES`, no anchors or aliases, no deep nesting) and the image must lie in
 the YAML's own folder (:func:`image_path`): a map file may be dropped in by anyone.
 
@@ -22,7 +22,7 @@ import os
 import stat
 from dataclasses import dataclass
 
-from flask_move_server.config import bounded_yaml
+from flask_move_server.config import guarded_yaml
 from flask_move_server.core.errors import ConfigError, shown
 
 OCCUPIED, FREE, UNKNOWN = 100, 0, -1
@@ -82,10 +82,10 @@ def load(yaml_path):
 def read_meta(path, rotated_ok=False):
     """The checked keys of a map_server YAML; a rotated origin only when ``rotated_ok`` (the sim needs yaw 0)."""
     try:
-        meta = bounded_yaml.read(path, MAX_YAML_BYTES)
+        meta = guarded_yaml.read(path, MAX_YAML_BYTES)
     except OSError as exc:
         raise ConfigError(path, None, "cannot read the map: {}".format(exc.strerror))
-    except bounded_yaml.YamlRefused as exc:
+    except guarded_yaml.Unreadable as exc:
         raise ConfigError(path, None, str(exc))
     if not isinstance(meta, dict):
         raise ConfigError(path, None, "a map_server map YAML must be a mapping (image:, resolution:, origin:, ...)")

@@ -9,7 +9,7 @@ The format is the mapping guide's, with the map's routes (if any) beside the way
 
 (``{x: .., y: .., yaw: ..}`` per entry loads too; each route is read by
 :func:`~flask_move_server.missions.route.make_route`). The text is read by
-:mod:`~flask_move_server.waypoints.safe_yaml` (a name given twice, anchors, aliases and deep
+:mod:`~flask_move_server.config.guarded_yaml` (a name given twice, anchors, aliases and deep
 nesting refused); whatever makes a file unreadable is a :class:`WaypointFileError` saying the
 line and what is wrong, never the file's text. :func:`dump` writes the seed format back, with
 numbers PyYAML reads as floats, and ``routes:`` only when there are routes. Pure: PyYAML only.
@@ -21,6 +21,7 @@ import re
 
 import yaml
 
+from flask_move_server.config import guarded_yaml
 from flask_move_server.core.errors import BadRoute, BadWaypoint, WaypointFileError, shown
 from flask_move_server.missions.route import make_route
 from flask_move_server.waypoints import (
@@ -30,7 +31,6 @@ from flask_move_server.waypoints import (
     Waypoint,
     check_coordinate,
     check_name,
-    safe_yaml,
 )
 
 _PLAIN_KEY_RE = re.compile(r"[^\W\d][\w-]*")  # a letter (any script) or '_', then letters, digits, '_', '-'
@@ -39,7 +39,7 @@ _BOUNDS = (("x", POSITION_LIMIT), ("y", POSITION_LIMIT), ("yaw", YAW_LIMIT))
 
 class Entries(dict):
     """The raw ``waypoints:`` mapping, knowing the line each name is on (for errors), whether the
-    text ended open, right after a bare value (``safe_yaml.Document.open_end``), and the raw
+    text ended open, right after a bare value (``guarded_yaml.Document.open_end``), and the raw
     ``routes:`` mapping beside it (``{}`` when the file has none)."""
 
     def __init__(self, entries, lines, open_end=False, routes=None):
@@ -75,8 +75,8 @@ def parse_document(text, source="waypoints"):
 def entries_of(text, source="waypoints"):
     """The raw ``waypoints:`` mapping of the file's text (an :class:`Entries`); None when blank or not given."""
     try:
-        data, lines, open_end = safe_yaml.load(text)
-    except safe_yaml.Unreadable as exc:
+        data, lines, open_end = guarded_yaml.load(text)
+    except guarded_yaml.Unreadable as exc:
         raise WaypointFileError("{} is not valid YAML: {}".format(source, exc))
     if data is None:
         return None

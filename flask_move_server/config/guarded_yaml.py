@@ -1,19 +1,32 @@
 """YAML from a hand-edited file, read as hostile text: bounded, and never quoted back.
 
-The waypoints files are edited by hand and may be links to anything, so their reader refuses
-what could blow up (anchors and aliases, nesting past :data:`MAX_DEPTH`, a name given twice),
-turns whatever the parser raises into :class:`Unreadable`, and says *where* and *what* is wrong
-(line, column, PyYAML's problem) without the text itself: an error about a file linked to a
-secret must not show its lines in an API answer or the log. Pure: PyYAML only.
+Two kinds of file come from people, and both are read here:
+
+- The waypoints files are edited by hand and may be links to anything. :func:`load` refuses what
+  could blow up (anchors and aliases, nesting past :data:`MAX_DEPTH`, a name given twice) and
+  gives a :class:`Document`, with the line of each key for the errors that follow.
+- A file anyone may drop into a folder the server reads (a map YAML) must not stall or flood the
+  process: aliases let a few hundred bytes expand to hundreds of megabytes (the "billion laughs"),
+  a few megabytes of YAML take PyYAML's pure-Python parser a minute, and thousands of nested
+  brackets overflow Python's stack. :func:`read` checks the file's size before reading it, scans
+  its events (anchors, aliases and nesting deeper than :data:`READ_MAX_DEPTH` refused) before
+  anything is built, and uses libyaml's C parser where PyYAML has it.
+
+Whatever the parser raises is :class:`Unreadable`, saying *where* and *what* is wrong (line,
+column, PyYAML's problem) without the text itself: an error about a file linked to a secret must
+not show its lines in an API answer or the log. Pure: PyYAML only.
 """
 
 import collections
 import collections.abc
+import os
 import re
+import stat
 
 import yaml
 
 MAX_DEPTH = 16  # levels of nesting: a waypoints file needs 4 (file, waypoints, entry, coordinate)
+READ_MAX_DEPTH = 32  # levels of nested mappings and lists in a file read(); a map YAML has 2
 # In PyYAML's problems, quoted syntax ('<block end>', ',', '\t') says what is wrong; other quoted
 # text (a tag, a handle) is the file's own and is left out.
 _QUOTED = re.compile(r""" ?('[^']*'|"[^"]*")""")
@@ -21,7 +34,8 @@ _SYNTAX = re.compile(r"""['"](<[a-z ]+>|.|\\.|\\x[0-9a-f]{2}|\\u[0-9a-f]{4})['"]
 
 
 class Unreadable(ValueError):
-    """The text is not YAML this reader takes; the message says where and what, never the text."""
+    """Not YAML these readers take (too big, not a regular file, an alias, too deep, invalid); the
+    message says where and what, never the text."""
 
 
 class _GuardedLoader(yaml.SafeLoader):
@@ -160,3 +174,55 @@ def describe(exc):
 def _syntax_only(match):
     quoted = match.group(1)
     return match.group(0) if _SYNTAX.fullmatch(quoted) else ""
+
+
+# Files read whole from a path: read() and what it needs.
+
+_Loader = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
+_START = (yaml.MappingStartEvent, yaml.SequenceStartEvent)
+_END = (yaml.MappingEndEvent, yaml.SequenceEndEvent)
+
+
+def _cut(text, limit):
+    return text if len(text) <= limit else text[:limit - 1] + "\u2026"
+
+
+def read(path, max_bytes):
+    """The data of the YAML file ``path``, at most ``max_bytes`` long; OSError, Unreadable."""
+    fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0))
+    with os.fdopen(fd, "rb") as f:
+        if not stat.S_ISREG(os.fstat(f.fileno()).st_mode):
+            raise Unreadable("not a regular file")
+        data = f.read(max_bytes + 1)
+    if len(data) > max_bytes:
+        raise Unreadable("larger than the {} bytes such a file may have".format(max_bytes))
+    try:
+        return _load_bounded(data.decode("utf-8"))
+    except UnicodeDecodeError:
+        raise Unreadable("not UTF-8 text") from None
+
+
+def _load_bounded(text):
+    """The data of YAML ``text``: anchors, aliases and nesting past READ_MAX_DEPTH refused first."""
+    try:
+        _check_events(text)
+        return yaml.load(text, Loader=_Loader)  # noqa: S506 - a SafeLoader
+    except Unreadable:
+        raise
+    except yaml.YAMLError as exc:  # where and what, never the file's text (it may be a link to a secret)
+        raise Unreadable("not valid YAML: " + _cut(describe(exc), 200)) from None
+    except Exception as exc:  # noqa: BLE001 - hostile text: whatever the parser raises, it is unreadable
+        raise Unreadable("cannot be read ({})".format(type(exc).__name__)) from None
+
+
+def _check_events(text):
+    depth = 0
+    for event in yaml.parse(text, Loader=_Loader):
+        if isinstance(event, yaml.AliasEvent) or getattr(event, "anchor", None) is not None:
+            raise Unreadable("anchors and aliases ('&', '*') are not allowed")
+        if isinstance(event, _START):
+            depth += 1
+            if depth > READ_MAX_DEPTH:
+                raise Unreadable("nested deeper than {} levels".format(READ_MAX_DEPTH))
+        elif isinstance(event, _END):
+            depth -= 1
