@@ -3,6 +3,8 @@
 import subprocess
 import sys
 
+import pytest
+
 from flask_move_server.drive.safe_stop import safe_stop
 from tests.standins.gpio import RecordingGPIO
 
@@ -37,9 +39,13 @@ def test_safe_stop_falls_back_to_default_pins_on_a_broken_config(tmp_path):
     assert all(gpio.outputs[p] == gpio.LOW for p in pins)
 
 
-def test_safe_stop_command(tmp_path):
+@pytest.mark.parametrize("command", [
+    ["flask_move_server.drive.safe_stop"],
+    ["flask_move_server.systemd", "safe-stop"],  # what the units installed earlier run
+])
+def test_safe_stop_command(tmp_path, command):
     config = tmp_path / "robot.yaml"
     config.write_text("drive:\n  backend: none\n")
-    proc = subprocess.run([sys.executable, "-m", "flask_move_server.drive.safe_stop", "--config", str(config)],
+    proc = subprocess.run([sys.executable, "-m"] + command + ["--config", str(config)],
                           capture_output=True, text=True, timeout=60)
     assert proc.returncode == 0 and "no L298N pins" in proc.stdout
