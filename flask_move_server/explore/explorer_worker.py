@@ -1,0 +1,291 @@
+"""The explorer's worker: mapping, frontiers, home, save, on the ``explorer`` thread.
+
+:class:`ExplorerWorker` is what :class:`~flask_move_server.explore.explorer.Explorer`'s thread runs,
+steps 1-4 of its docstring: switch to mapping, survey the frontiers and follow the best (kept
+while its frontier is there, blacklisted when aborted, stalled or reached), go home (or to the
+``dock`` marked while mapping), save and navigate or idle. It reads and changes the explorer's
+state under the explorer's lock, as the explorer's own methods do. Pure: no rospy, no Flask.
+"""
+
+import logging
+import math
+import time
+
+from flask_move_server.core.errors import MoveServerError, NoPose, UnknownWaypoint
+from flask_move_server.core.geometry import Goal, Pose2D
+from flask_move_server.explore.exploration import DONE, EXPLORING, FAILED, RETURNING, SAVING
+
+log = logging.getLogger(__name__)
+
+POLL = 0.5  # s between looks at the map and the goal (a goal's end wakes the worker at once)
+NEARER = 0.1  # m the robot must come nearer its target within progress_timeout
+KEEP = 0.75  # m: a goal is kept while a frontier's target lies this near it
+DOCK = "dock"
+HOME_TRIES = 2  # goals home before the map is saved where the robot stands
+
+
+class ExplorerWorker:
+    """The worker's half of Explorer (a mixin: the state and the lock are Explorer's)."""
+
+    def _work(self, exp):
+        try:
+            if self._to_mapping(exp) and self._explore(exp) and self._go_home(exp):
+                self._save(exp)
+        except Exception as exc:  # a worker must end its exploration, whatever went wrong
+            log.exception("exploring failed")
+            with self._lock:
+                if exp.active:
+                    self._end(exp, FAILED, "Exploring failed: {}".format(exc))
+        finally:
+            with self._lock:
+                exp.target = None
+            self._cancel_own_goal()
+
+    def _still(self, exp):
+        with self._lock:
+            return exp.active and self._exp is exp and not self._closed
+
+    def _to_mapping(self, exp):
+        """Mapping runs (switched to if needed); False when the exploration ended meanwhile."""
+        if not self._modes.wait(self.start_timeout):
+            return self._fail(exp, "Mapping did not start within {:g} s (GET /mode says why).".format(
+                self.start_timeout))
+        self._maps.source.latest(self._maps.save_timeout)  # the first map: the first survey needs one
+        home = self._first_pose(exp)
+        with self._lock:
+            if home is None or not self._still(exp):
+                return False
+            exp.state, exp.message = EXPLORING, "Looking for the edges of what the robot has seen."
+            self._home = home
+            self._changed(exp)
+        return True
+
+    def _first_pose(self, exp):
+        """Where the robot stands on the new map, waiting for SLAM's first tf (None: ended or failed)."""
+        deadline = time.monotonic() + self._maps.save_timeout
+        while self._still(exp):
+            try:
+                return self._robot.current_pose()
+            except NoPose as exc:
+                if time.monotonic() > deadline:
+                    self._fail(exp, "The robot's place on the new map is not known: {}".format(exc))
+                    return None
+            time.sleep(POLL / 5)
+        return None
+
+    def _explore(self, exp):
+        """Drive to frontiers until none is left or time is up; False when the exploration ended."""
+        blacklist, goal = [], None
+        empty = 0
+        while self._still(exp):
+            if goal is not None:
+                goal = self._follow(goal, blacklist)
+            survey = self._survey(exp, blacklist)
+            if goal is not None and survey is not None and not _still_there(goal, survey):
+                goal = None  # its frontier was seen: the next goal replaces this one (no cancel, no blacklist)
+            if goal is None and survey is not None:
+                if not survey.frontiers:
+                    empty += 1
+                    if empty >= 2:
+                        return self._explored(exp, survey)
+                    time.sleep(POLL)
+                    continue
+                empty = 0
+                goal = self._send(exp, survey.frontiers[0].target)
+            if exp.over_time():
+                self._cancel_own_goal()
+                with self._lock:
+                    exp.message = "Stopped exploring after {:g} minutes, as asked; {} frontiers were left.".format(
+                        exp.max_minutes, exp.frontiers)
+                return self._still(exp)
+            if goal is not None:
+                goal.wait(self._robot, POLL)
+        return False
+
+    def _survey(self, exp, blacklist):
+        """The frontiers on the latest map from where the robot stands (None: no pose or map now)."""
+        from flask_move_server.explore import frontiers  # numpy: loaded by the first exploration, not at rest
+
+        try:
+            _, grid = self._maps.source.current()
+            pose = self._robot.current_pose()
+        except (MoveServerError, NoPose) as exc:
+            log.info("explorer: no map or pose now (%s)", exc)
+            time.sleep(POLL)
+            return None
+        survey = frontiers.survey(grid, (pose.x, pose.y), self.radius, blacklist=blacklist)
+        with self._lock:
+            exp.frontiers, exp.unreachable = len(survey.frontiers), len(survey.unreachable)
+            exp.known_m2 = survey.known_m2
+            self._progress(exp)
+        return survey
+
+    def _follow(self, goal, blacklist):
+        """The goal under way after a look: kept, or ended (None; its target blacklisted unless replaced by us)."""
+        state, why = self._robot.goal_end(goal.seq, 0)
+        if state == "succeeded":
+            blacklist.append(goal.target)
+            return None
+        if state not in ("active", "canceling"):
+            if state != "preempted":
+                log.info("explorer: frontier at (%.2f, %.2f) given up: %s %s", *goal.target, state, why or "")
+                blacklist.append(goal.target)
+            return None
+        if goal.stalled(self._robot, self.progress_timeout):
+            log.info("explorer: no progress toward (%.2f, %.2f) for %g s", *goal.target, self.progress_timeout)
+            blacklist.append(goal.target)
+            self._robot.cancel_goal(goal.seq)
+            return None
+        return goal
+
+    def _send(self, exp, target):
+        """Send a goal to ``target`` facing away from the robot; the _Goal, or None when refused or ended."""
+        with self._sending:
+            if not self._still(exp):
+                return None
+            try:
+                here = self._robot.current_pose()
+                yaw = math.atan2(target[1] - here.y, target[0] - here.x)
+                seq = self._robot.run_goto(Goal(Pose2D(target[0], target[1], yaw), None))
+            except MoveServerError as exc:
+                self._fail(exp, "A goal to the next frontier was refused: {}".format(exc))
+                return None
+            with self._lock:
+                if not self._still(exp):  # a stop came as it was sent: this goal is ours to cancel
+                    self._robot.cancel_goal(seq)
+                    return None
+                exp.goals += 1
+                exp.target = target
+                self._seq = seq
+                self._changed(exp)
+        return _Goal(seq, target, here.distance_to(Pose2D(target[0], target[1], 0.0)))
+
+    def _explored(self, exp, survey):
+        with self._lock:
+            if not self._still(exp):
+                return False
+            unreachable = len(survey.unreachable)
+            exp.message = "The whole reachable flat is mapped ({:.0f} m² known){}.".format(
+                survey.known_m2, "; {} place{} seen through gaps too narrow for the robot".format(
+                    unreachable, "s were" if unreachable != 1 else " was") if unreachable else "")
+        return True
+
+    def _go_home(self, exp):
+        """Back to the start (or the dock marked while mapping); False when the exploration ended."""
+        if not exp.return_home:
+            return self._still(exp)
+        home, name = self._home_pose()
+        with self._lock:
+            if not self._still(exp):
+                return False
+            exp.state, exp.target = RETURNING, (home.x, home.y)
+            note = exp.message
+            exp.message = "Coming back to {}.".format(name)
+            self._changed(exp)
+        state, why = "aborted", None
+        for _ in range(HOME_TRIES):  # move_base may give up once (a corner, a person); a second try often does
+            seq = self._send_home(exp, home, name)
+            if seq is None:
+                return False
+            state, why = self._home_goal_end(exp, seq)
+            if state != "aborted":
+                break
+        if not self._still(exp):
+            return False
+        with self._lock:
+            exp.message = note if state == "succeeded" else "{} It could not get back to {} ({}); the map is " \
+                "saved where it stands.".format(note, name, why or state)
+        return True
+
+    def _send_home(self, exp, home, name):
+        """The goal home's seq; None when the exploration ended (or the goal was refused: failed)."""
+        with self._sending:
+            if not self._still(exp):
+                return None
+            try:
+                seq = self._robot.run_goto(Goal(home, name if name == DOCK else None))
+            except MoveServerError as exc:
+                self._fail(exp, "The way back was refused: {}".format(exc))
+                return None
+            self._seq = seq
+            if not self._still(exp):  # a stop came as it was sent: this goal is ours to cancel
+                self._robot.cancel_goal(seq)
+                return None
+        return seq
+
+    def _home_goal_end(self, exp, seq):
+        deadline = time.monotonic() + self.return_timeout
+        state, why = "active", None
+        while self._still(exp) and state in ("active", "canceling") and time.monotonic() < deadline:
+            state, why = self._robot.goal_end(seq, POLL)
+        return state, why
+
+    def _home_pose(self):
+        """(Pose2D, words): the ``dock`` place marked while mapping, else where exploring began."""
+        store = self._maps.store
+        if store.path == self._maps.marks.path:
+            try:
+                dock = store.get(DOCK)
+                return Pose2D(dock.x, dock.y, dock.yaw), DOCK
+            except UnknownWaypoint:
+                pass
+        return self._home, "where it started"
+
+    def _save(self, exp):
+        with self._lock:
+            if not self._still(exp):
+                return
+            exp.state, exp.target = SAVING, None
+            note = exp.message
+            exp.message = "Saving the map as {}.".format(exp.save_as)
+            self._changed(exp)
+        try:
+            here = self._robot.current_pose()
+        except MoveServerError:
+            here = None
+        try:
+            result = self._maps.save(exp.save_as, exp.overwrite, then=exp.then == "navigation", here=here)
+            if exp.then == "idle":
+                self._modes.switch("idle")
+        except MoveServerError as exc:
+            self._fail(exp, "The map could not be saved as {}: {}".format(exp.save_as, exc))
+            return
+        with self._lock:
+            exp.map = exp.save_as
+            failed = result.get("mode_error")
+            after = "now navigating on it" if exp.then == "navigation" else "the robot is idle"
+            if failed:
+                after = "but navigation on it did not start: {}".format(failed["message"])
+            self._end(exp, DONE, "{} Saved as {}, {}.".format(note, exp.save_as, after))
+
+
+class _Goal:
+    """A frontier goal under way, and how near the robot has come to it."""
+
+    def __init__(self, seq, target, distance):
+        self.seq, self.target = seq, target
+        self._best, self._since = distance, time.monotonic()
+
+    def wait(self, robot, timeout):
+        robot.goal_end(self.seq, timeout)
+
+    def stalled(self, robot, patience):
+        """True once the robot came no ``NEARER`` for ``patience`` s."""
+        try:
+            here = robot.current_pose()
+        except MoveServerError:
+            return False
+        distance = math.hypot(self.target[0] - here.x, self.target[1] - here.y)
+        now = time.monotonic()
+        if distance < self._best - NEARER:
+            self._best, self._since = distance, now
+        return now - self._since > patience
+
+
+def _still_there(goal, survey):
+    """True while a frontier's target lies within KEEP of the goal's: its frontier is not seen yet."""
+    return any(_near(f.target, goal.target, KEEP) for f in survey.frontiers)
+
+
+def _near(a, b, radius):
+    return math.hypot(a[0] - b[0], a[1] - b[1]) <= radius
