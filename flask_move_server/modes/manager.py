@@ -7,7 +7,7 @@ Every state change is published as a ``mode`` event carrying the ``GET /mode`` b
 mode that reached ``running`` is remembered in ``Config.mode_state_file()`` for the next start;
 while that file cannot be written, every status's message says so (``unsaved``).
 
-A stack that dies by itself (the backend calls ``on_exit``) is restarted as ``modes/restarts.py``
+A stack that dies by itself (the backend calls ``on_exit``: ``modes/crashes.py``) is restarted as ``modes/restarts.py``
 allows (up to ``modes.restarts`` times, after 1, 2 then 4 s; a long run forgives earlier
 crashes), and is ``failed`` after that (what is left of it stopped: roslaunch keeps a stack's
 other nodes running when one dies).
@@ -31,6 +31,7 @@ from flask_move_server.core.errors import ModesOff, ModeSwitching, StackFailed, 
 from flask_move_server.maps.catalogue import MapCatalogue
 from flask_move_server.modes import relocalizing, state_file
 from flask_move_server.modes.assumed_pose import AssumedPose
+from flask_move_server.modes.crashes import StackCrashes
 from flask_move_server.modes.restarts import RestartBudget
 from flask_move_server.modes.targets import IDLE, OUTSIDE, Target, Targets
 
@@ -42,7 +43,7 @@ def _now_iso():
     return datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")
 
 
-class ModeManager:
+class ModeManager(StackCrashes):
     """The mode in force and the one switch allowed at a time; ``backend`` None: modes are off."""
 
     READY_WAIT = 5.0  # seconds a started stack's move_base may take to answer the server's action client
@@ -259,55 +260,6 @@ class ModeManager:
             message = "{}; {}".format(message, self._unsaved) if message else self._unsaved
         return {"mode": target.mode, "map": target.shown_map, "state": state, "since": _now_iso(), "message": message,
                 "localization": self._assumed.as_dict()}
-
-    # crashes ---------------------------------------------------------------
-
-    def _on_exit(self, gen, message):
-        """The backend's stack of switch ``gen`` died by itself: restart it, or give up."""
-        with self._changed:
-            if gen != self._gen or self._busy or self._closed or self._status["state"] != "running":
-                return  # a stack we are stopping, or an old one
-            log.warning("the %s stack stopped by itself: %s", self._target.mode, message)
-            self.restart_budget.crashed()
-            gave_up = not self._count_restart(message)
-            self._busy = True
-            self._gen += 1  # the restarted stack's exits carry the new number; the dead one's are ignored
-            gen, target = self._gen, self._target
-        if gave_up:
-            self._spawn(self._stop_remains, gen)
-        else:
-            self._spawn(self._restart, gen, target, message)
-
-    def _stop_remains(self, gen):
-        """Failed for good: stop what is left of the stack (roslaunch and its other nodes, the lidar spinning)."""
-        try:
-            self._stop_stack()
-        finally:
-            self._done(gen)
-
-    def _count_restart(self, message):
-        """Under the lock: one more restart, or False when none is left (the mode is then failed)."""
-        failure = self.restart_budget.take(message)
-        if failure is not None:
-            self._set(self._target, "failed", failure)
-        return failure is None
-
-    def _restart(self, gen, target, message):
-        try:
-            while True:
-                note = self.restart_budget.note(message)
-                with self._changed:
-                    self._set(target, "starting", note)
-                if self._closing.wait(self.restart_budget.delay()):
-                    return
-                self._stop_stack()
-                message = self._start(gen, target, note, relocalize=False)
-                with self._changed:
-                    if message is None or not self._count_restart(message):
-                        self._release(gen)
-                        return
-        finally:
-            self._done(gen)
 
     # start-up, pose, close -------------------------------------------------
 
