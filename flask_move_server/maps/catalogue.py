@@ -17,13 +17,10 @@ deletes them. Mutations take one lock, so two requests cannot interleave a
 rename and a save. Pure: no rospy, no Flask.
 """
 
-import datetime
 import logging
 import os
 import threading
-from dataclasses import dataclass
 
-from flask_move_server.config import guarded_yaml
 from flask_move_server.core import names as naming
 from flask_move_server.core.errors import (
     BadMapName,
@@ -36,10 +33,18 @@ from flask_move_server.core.errors import (
 )
 from flask_move_server.maps import mapfile
 from flask_move_server.maps.file_cache import FileVersionCache
-from flask_move_server.sim import occupancy
+from flask_move_server.maps.map_info import (
+    MAP_SAVER_KEYS,
+    MapInfo,
+    count_entries,
+    facts_of,
+    file_version,
+    iso_time,
+    map_meta,
+    raw_meta,
+)
 from flask_move_server.waypoints import NAME_RULE, suggest
 from flask_move_server.waypoints import locked_file as waypoints_file
-from flask_move_server.waypoints.yaml_format import entries_of
 
 log = logging.getLogger(__name__)
 WAYPOINTS_SUFFIX = ".waypoints.yaml"
@@ -57,29 +62,6 @@ def check_map_name(name):
                          "of some scripts take 4 bytes each); use a shorter name.".format(
                              shown(name), len(name.encode("utf-8")), MAX_NAME_BYTES))
     return name
-
-
-@dataclass(frozen=True)
-class MapInfo:
-    """What the maps list says of one map; ``problem`` names what is wrong with a broken one."""
-
-    name: str
-    width: object
-    height: object
-    resolution: object
-    origin: object
-    modified: str
-    waypoints: int
-    problem: object = None
-    source: str = "saved"  # "configured": the stack's own map (maps/configured.py)
-
-    def as_dict(self):
-        data = {"name": self.name, "width": self.width, "height": self.height, "resolution": self.resolution,
-                "origin": self.origin, "modified": self.modified, "waypoints": self.waypoints,
-                "source": self.source}
-        if self.problem:
-            data["problem"] = self.problem
-        return data
 
 
 class MapCatalogue:
@@ -146,10 +128,10 @@ class MapCatalogue:
         name = check_map_name(name)
         path = self._existing(name)
         try:
-            modified = _iso_time(os.stat(path).st_mtime)
+            modified = iso_time(os.stat(path).st_mtime)
         except FileNotFoundError:
             raise self._unknown(name) from None
-        facts, new = self._facts.get(path, lambda: _facts_of(path))
+        facts, new = self._facts.get(path, lambda: facts_of(path))
         if new and facts["problem"]:
             log.warning("the map %r is broken: %s", name, facts["problem"])
         return MapInfo(name, facts["width"], facts["height"], facts["resolution"], facts["origin"], modified,
@@ -165,13 +147,13 @@ class MapCatalogue:
         name = check_map_name(name)
         path = self._existing(name)
         try:
-            _read_meta(path)
+            map_meta(path)
             return mapfile.load(path)
         except ConfigError as exc:
             raise MapFileError("The map {!r} cannot be read: {}".format(name, exc)) from exc
 
     def _count_waypoints(self, name):
-        return self._counts.get(self.waypoints_path(name), lambda: (_count_entries(self.waypoints_path(name)), ()))[0]
+        return self._counts.get(self.waypoints_path(name), lambda: (count_entries(self.waypoints_path(name)), ()))[0]
 
     def _existing(self, name):
         path = self.yaml_path(name)
@@ -238,7 +220,7 @@ class MapCatalogue:
 
         Killed half-way, the folder holds the map twice (or once), never zero times.
         """
-        meta = _raw_meta(old_yaml)
+        meta = raw_meta(old_yaml)
         image = meta["image"]
         # its own image: NAME.pgm, or the temporary an interrupted save left the YAML naming
         own_image = image == old + ".pgm" or mapfile.is_part(image, old)
@@ -249,7 +231,7 @@ class MapCatalogue:
         for source, target in links:
             if os.path.exists(source):
                 _replace_link(source, target)
-        extra = {k: v for k, v in meta.items() if k not in _MAP_SAVER_KEYS}
+        extra = {k: v for k, v in meta.items() if k not in MAP_SAVER_KEYS}
         text = mapfile.yaml_text(meta["image"], float(meta["resolution"]), meta["origin"], extra)
         part = mapfile.write_part(self.folder, new, ".yaml", text.encode())
         os.rename(part, self.yaml_path(new))
@@ -323,75 +305,6 @@ class MapCatalogue:
         return removed
 
 
-_MAP_SAVER_KEYS = ("image", "resolution", "origin", "negate", "occupied_thresh", "free_thresh")
-
-
-def _read_meta(yaml_path):
-    """map_server's checked keys of a map YAML in the folder; a symlink must resolve into the folder."""
-    if not occupancy.inside(os.path.dirname(yaml_path), yaml_path):
-        raise ConfigError(yaml_path, None, "a symbolic link to a file outside the maps folder; copy the map "
-                                           "into the folder instead")
-    return occupancy.read_meta(yaml_path, rotated_ok=True)
-
-
-def _raw_meta(yaml_path):
-    """The YAML's mapping as written (extra keys kept), checked by map_server's rules first."""
-    _read_meta(yaml_path)
-    try:
-        return guarded_yaml.read(yaml_path, occupancy.MAX_YAML_BYTES)
-    except guarded_yaml.Unreadable as exc:  # changed since it was checked
-        raise ConfigError(yaml_path, None, str(exc)) from None
-
-
-def file_version(name, *paths):
-    """A version of a map's files for an ETag: each one's change time and size ("none" when missing)."""
-    parts = [name]
-    for path in paths:
-        try:
-            info = os.stat(path)
-            parts.append("{:x}-{:x}".format(info.st_mtime_ns, info.st_size))
-        except FileNotFoundError:
-            parts.append("none")
-    return "-".join(parts)
-
-
-def describe_file(name, yaml_path, waypoints_path, source, cache):
-    """The :class:`MapInfo` of a map outside the folder (the configured one); OSError if it is gone.
-
-    ``cache``: a FileVersionCache, so its YAML and image header are read once per version.
-    """
-    modified = _iso_time(os.stat(yaml_path).st_mtime)
-    facts, _ = cache.get(yaml_path, lambda: _facts_of(yaml_path))
-    count, _ = cache.get(waypoints_path, lambda: (_count_entries(waypoints_path), ()))
-    return MapInfo(name, facts["width"], facts["height"], facts["resolution"], facts["origin"], modified, count,
-                   problem=facts["problem"], source=source)
-
-
-def _facts_of(yaml_path):
-    """``({width, height, resolution, origin, problem}, [the image's path])`` of a map's YAML."""
-    facts = dict.fromkeys(("width", "height", "resolution", "origin", "problem"))
-    try:
-        meta = _read_meta(yaml_path)
-    except ConfigError as exc:
-        return dict(facts, problem=str(exc)), ()
-    try:
-        image = occupancy.image_path(yaml_path, meta["image"])
-        facts["width"], facts["height"] = mapfile.image_size(yaml_path, meta["image"])
-    except (OSError, ValueError) as exc:
-        reason = exc.strerror if isinstance(exc, OSError) and exc.strerror else exc
-        problem = "{}: image: {}: {}".format(yaml_path, shown(meta["image"]), reason)
-        return dict(facts, problem=problem), ()
-    facts.update(resolution=meta["resolution"], origin=list(meta["origin"]))
-    return facts, (image,)
-
-
-def _count_entries(waypoints_path):
-    try:
-        return len(entries_of(waypoints_file.read(waypoints_path) or "", source="waypoints") or {})
-    except (OSError, ValueError):
-        return 0
-
-
 def _replace_link(source, target):
     _remove_if_there(target)
     os.link(source, target)
@@ -404,5 +317,3 @@ def _remove_if_there(path):
         pass
 
 
-def _iso_time(timestamp):
-    return datetime.datetime.fromtimestamp(timestamp, datetime.timezone.utc).isoformat(timespec="seconds")

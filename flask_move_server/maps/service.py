@@ -38,8 +38,9 @@ from flask_move_server.core.errors import (
 )
 from flask_move_server.maps import configured as configured_map
 from flask_move_server.maps import render
-from flask_move_server.maps.catalogue import check_map_name, describe_file, file_version
+from flask_move_server.maps.catalogue import check_map_name
 from flask_move_server.maps.file_cache import FileVersionCache
+from flask_move_server.maps.map_info import describe_file, file_version
 from flask_move_server.maps.marks import FILE_NAME as MARKS_FILE
 from flask_move_server.maps.marks import MappingMarks
 from flask_move_server.waypoints import locked_file as waypoints_file
