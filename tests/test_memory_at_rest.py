@@ -18,7 +18,7 @@ HEAVY = ("numpy", "paho", "jsonschema", "zeroconf")
 
 SERVER = """
 import json, sys
-from flask_move_server import cli, server_options
+from flask_move_server.app import cli, server_options
 from flask_move_server.app.launching import split_ros_args
 
 ours, ros_args = split_ros_args(sys.argv[1:])

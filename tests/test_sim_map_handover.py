@@ -110,6 +110,6 @@ def test_after_every_switch_get_map_answers_with_the_map_switched_to(sim):
         for body, wanted in ((DEMO, demo), (MAPPING, None), (DEMO, demo), (FLAT, flat), (DEMO, demo)):
             sim.switch(body)
             now = sim.live_map(body)
-            assert (now["mode"], now["map"]) == (body["mode"], None if body is DEMO else body.get("map"))
+            assert (now["mode"], now["map"]) == (body["mode"], body.get("map"))  # the demo's own map by its name
             if wanted is not None:
                 assert shape(now) == shape(wanted), body
