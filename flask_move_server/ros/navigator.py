@@ -19,42 +19,39 @@ from collections import OrderedDict
 import actionlib
 import rospy
 from actionlib import CommState, SimpleGoalState
-from actionlib_msgs.msg import GoalID, GoalStatus
+from actionlib_msgs.msg import GoalID
 from geometry_msgs.msg import PoseStamped
 from move_base_msgs.msg import MoveBaseAction, MoveBaseActionGoal, MoveBaseGoal
 
 from flask_move_server.core.errors import NavigationUnavailable, RosUnavailable
-from flask_move_server.core.goal_endings import failure_sentence, replaced_end, replaced_sentence, said_sentence
+from flask_move_server.core.goal_endings import failure_sentence, replaced_end
 from flask_move_server.process.log_limits import Throttled
 from flask_move_server.ros import master
 from flask_move_server.ros.action_status import read_status_lightly
 from flask_move_server.ros.convert import pose_from_msg, pose_stamped, write_pose
 from flask_move_server.ros.direct import direct_publisher
+from flask_move_server.ros.goal_ends import (
+    ACTIVE,
+    CANCELED,
+    CANCELING,
+    IDLE,
+    SUCCEEDED,
+    TERMINAL,
+    UNDER_WAY,
+    GoalEnds,
+    end_of_replaced,
+)
 from flask_move_server.ros.goal_first import publish_goals_first
 from flask_move_server.ros.node import WAITING
 from flask_move_server.ros.readiness import ServerReadiness
 
 log = logging.getLogger(__name__)
 
-IDLE, ACTIVE, CANCELING, SUCCEEDED, ABORTED, CANCELED, REJECTED = (
-    "idle", "active", "canceling", "succeeded", "aborted", "canceled", "rejected",
-)
-TERMINAL = (SUCCEEDED, ABORTED, CANCELED, REJECTED)
-UNDER_WAY = (ACTIVE, CANCELING)
 GOAL_LINES_BURST = 20  # goal lines logged per 10 s; the rest of a storm is counted
-ENDS_KEPT = 16  # replaced goals whose ends are kept for a client still waiting on one
-
-_FROM_STATUS = {
-    GoalStatus.SUCCEEDED: SUCCEEDED,
-    GoalStatus.ABORTED: ABORTED,
-    GoalStatus.LOST: ABORTED,
-    GoalStatus.REJECTED: REJECTED,
-    GoalStatus.PREEMPTED: CANCELED,
-    GoalStatus.RECALLED: CANCELED,
-}
 
 
-class Navigator:
+
+class Navigator(GoalEnds):
     """Sends the robot to goals and tracks the current one."""
 
     cancel_patience = 5.0  # s without move_base's word on a cancel before /status asks whether it runs
@@ -151,7 +148,7 @@ class Navigator:
                 else:
                     self._goal_pub.publish(pose_stamped(goal.pose, self._frame, rospy.Time.now()))
         finally:
-            self._tell_end(_replaced_end(replaced))  # the replaced goal's end: after the new goal is on its way
+            self._tell_end(end_of_replaced(replaced))  # the replaced goal's end: after the new goal is on its way
         self._goal_lines.info("goal %d: %s %s", seq, goal.target or "pose", goal.pose.as_dict())
         if self.trips is not None:
             self.trips.started(goal)
@@ -228,40 +225,6 @@ class Navigator:
             return None
         target = self._goal.target if self._goal else None
         return self._message or self._unconfirmed_cancel() or failure_sentence(state, target)
-
-    def _keep_end(self):
-        """Lock held, a newer goal about to replace this one: keep how it ended for its waiting client.
-
-        Only the facts (on the way to the publish); goal_endings.replaced_end makes the answer if someone asks.
-        """
-        if self._seq:
-            self._ends[self._seq] = (self._state, self._message, self._goal.target if self._goal else None)
-            if len(self._ends) > ENDS_KEPT:
-                self._ends.popitem(last=False)
-
-    def _replaced_facts(self):
-        """Lock held, a newer goal about to replace this one: ``(seq, state, goal, message)`` when it was
-        under way, else None (its end was told when it came). Only the facts, on the way to the
-        publish: :func:`_replaced_end` makes the end told once the new goal is on its way."""
-        if not self._seq or self._state not in UNDER_WAY:
-            return None
-        return self._seq, self._state, self._goal, self._message
-
-    def _end_of_current(self):
-        """Lock held, the current goal just ended: ``(seq, state, target, pose, why)`` for :meth:`when_ended`."""
-        goal = self._goal
-        return (self._seq, self._state, goal.target if goal else None, goal.pose if goal else None,
-                self._why(self._state))
-
-    def _tell_end(self, end):
-        """Tell ``end`` (or nothing, for None) to every :meth:`when_ended` listener; no lock held."""
-        if end is None:
-            return
-        for callback in list(self._end_listeners):
-            try:
-                callback(*end)
-            except Exception:  # a listener's bug must not lose the goal's end for the others, nor break actionlib
-                log.exception("goal %d: a listener of its end failed", end[0])
 
     def release_waiters(self):
         """Wake every :meth:`wait`, now and from now on: the server is stopping."""
@@ -373,93 +336,6 @@ class Navigator:
         return "ROS is not reachable: no master answers at {} ({}). Start roscore, or set ROS_MASTER_URI.".format(
             uri, self._node.state)
 
-    def _done(self, seq, status):
-        self._acknowledged(seq)
-        state = _FROM_STATUS.get(status, ABORTED)
-        said = self._said(state)
-        self._finish(seq, state, said)
-        self._goal_lines.info("goal %d: %s%s", seq, state, " ({})".format(said) if said else "")
-
-    def _said(self, state):
-        """move_base's own reason for a goal that failed (its status text: "Failed to find a valid plan…"), or None.
-
-        Called in the goal's done callback, while the client still holds that goal.
-        """
-        if state not in (ABORTED, REJECTED) or self._client is None:
-            return None
-        try:
-            text = self._client.get_goal_status_text()
-        except Exception:  # a reason is a nicety: never let it lose the goal's end
-            return None
-        return text.strip() or None
-
-    def _finish(self, seq, state, said=None):
-        ended = None
-        with self._cond:
-            if seq == self._seq and self._state in UNDER_WAY:  # the first end of a goal is its end
-                self._state = state
-                if said:
-                    self._message = said_sentence(state, self._goal.target if self._goal else None, said)
-                ended = self._end_of_current()
-                self._cond.notify_all()
-                if self.trips is not None:
-                    self.trips.ended()
-        self._tell_end(ended)
-
-    def _master_lost(self):
-        """No master: move_base's word may never come, so a goal under way ends ``aborted`` now."""
-        self.abandon("The ROS master stopped answering, so the goal was given up (and a cancel sent to "
-                     "move_base); send it again once /health says \"ros\": \"connected\".",
-                     "the ROS master stopped answering")
-
-    def abandon(self, why, reason, seq=None):
-        """Give up the goal under way (goal ``seq`` only, when given): ``aborted`` with the sentence
-        ``why``, its cancel sent; True when one was. For a goal whose move_base may never answer
-        again: the master is gone, the stack is being switched or stopped, no acknowledgement."""
-        with self._cond:
-            if self._state not in UNDER_WAY or (seq is not None and seq != self._seq):
-                return False
-            seq, self._state, self._message = self._seq, ABORTED, why
-            ended = self._end_of_current()
-            self._cond.notify_all()
-            if self.trips is not None:
-                self.trips.ended()
-        log.error("goal %d: aborted, %s", seq, reason)
-        try:
-            self._send_cancel()  # over the open connection: move_base must not resume it later
-        except Exception as exc:
-            log.warning("goal %d: could not send its cancel: %s", seq, exc)
-        self._tell_end(ended)
-        return True
-
-    def _acknowledged(self, seq):
-        with self._cond:
-            if seq == self._seq:
-                self._unacknowledged = None
-
-    def _watch_acknowledgements(self):
-        """Abort a goal move_base has not acknowledged within ``ack_patience`` (action mode).
-
-        move_base answers a goal at once (active, or rejected); one sent as its stack was going away
-        had no answer ever and stayed ``active`` for good: a waiting client waited its whole timeout.
-        """
-        while not self._closed:
-            with self._cond:
-                while self._unacknowledged is None and not self._closed:
-                    self._cond.wait()
-                pending = self._unacknowledged
-                if pending is None:
-                    return
-                seq, sent = pending
-                left = sent + self.ack_patience - time.monotonic()
-                if left > 0:
-                    self._cond.wait(left)
-                    continue
-                self._unacknowledged = None
-            self.abandon("move_base did not acknowledge the goal within {:.0f} s, so it was given up: is the "
-                         "navigation stack running? (GET /mode, GET /health)".format(self.ack_patience),
-                         "move_base did not acknowledge it within {:.0f} s".format(self.ack_patience), seq)
-
     def _feedback(self, seq, feedback):
         pose = pose_from_msg(feedback.base_position.pose)
         with self._cond:
@@ -476,20 +352,6 @@ class Navigator:
         here = reading.pose if reading is not None else self._feedback_pose
         return None if here is None else round(here.distance_to(goal.pose), 3)
 
-
-def _replaced_end(facts):
-    """The end ``(seq, state, target, pose, why)`` for :meth:`Navigator.when_ended` of a goal replaced
-    while under way (``facts`` from :meth:`Navigator._replaced_facts`, or None): ``canceled``,
-    "replaced by a newer goal", or the cancel's sentence when one was sent."""
-    if facts is None:
-        return None
-    seq, state, goal, message = facts
-    target = goal.target if goal else None
-    if state == ACTIVE:
-        why = replaced_sentence(target)
-    else:
-        why = message or failure_sentence(CANCELED, target)
-    return seq, CANCELED, target, goal.pose if goal else None, why
 
 
 def _settle_last_goal(client, patience=1.0):
