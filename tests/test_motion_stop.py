@@ -100,6 +100,9 @@ def nav_client(request, robot_config, ros_node, unique_name):
     try:
         wait_for(robot.navigator.server_ready, timeout=15, message="goals to be sendable")
         wait_for(lambda: cancels._sub.get_num_connections(), message="the cancel topic to connect")
+        # and the robot's side knowing the recorder: a cancel published before it does is lost
+        sender = robot.navigator._cancel_pub or robot.navigator._client.action_client.pub_cancel
+        wait_for(lambda: sender.get_num_connections(), message="the cancel publisher to know the recorder")
         app = create_app(robot_config, robot, WaypointStore(robot_config.waypoints.file))
         yield request.param, app.test_client(), stand_in, cancels
     finally:
