@@ -9,7 +9,7 @@ of its own (no shared GIL with the others) holding one keep-alive connection and
 2. ``POST /stop`` latency while 8 clients poll (target p99 ≤ 10 ms);
 3. ``GET /health`` latency with move_base absent (target p50 ≤ 1 ms).
 
-``--compare DIR`` runs the same against the server in another checkout (``git worktree add DIR REV``),
+``--compare DIR`` (repeatable) runs the same against the server in another checkout (``git worktree add DIR REV``),
 in the same run, so a change is measured against what it replaced.
 
 ``--guard`` (``make bench-guard``, run by CI) is a pass/fail check of one server: in one run it
@@ -183,7 +183,8 @@ def main():
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--seconds", type=float, help="one window (default 5 s, --guard 2 s)")
     parser.add_argument("--clients", default="1,2,4,8")
-    parser.add_argument("--compare", metavar="DIR", help="another checkout's server, measured in the same run")
+    parser.add_argument("--compare", metavar="DIR", action="append", default=[],
+                        help="another checkout's server, measured in the same run (repeatable)")
     parser.add_argument("--guard", action="store_true", help="pass/fail: 8 clients / 1 client and /stop's p99")
     parser.add_argument("--checkout", metavar="DIR", default=ROOT, help="--guard: the server of this checkout")
     parser.add_argument("--rounds", type=int, default=3, help="--guard: windows of 1 and of 8 clients")
@@ -201,8 +202,8 @@ def main():
         if args.guard:
             return 0 if guard(env, os.path.abspath(args.checkout), args) else 1
         measure("this checkout", env, ROOT, args, counts)
-        if args.compare:
-            measure(os.path.basename(os.path.abspath(args.compare)), env, os.path.abspath(args.compare), args, counts)
+        for other in args.compare:
+            measure(os.path.basename(os.path.abspath(other)), env, os.path.abspath(other), args, counts)
     finally:
         stop_process(master)
     return 0
