@@ -215,10 +215,13 @@ def test_robotctl_doctor_prints_each_line_and_exits_1_on_a_failure(robot_config,
 
     app = create_app(robot_config, robot, store, doctor=doctor)
     with serve(app) as url:
-        status = client.main(["--url", url, "doctor", "--seconds", "0.5"])
+        status = client.main(["--url", url, "doctor", "--seconds", "2"])
     out = capsys.readouterr().out
     assert status == 1  # no move_base here
-    assert "PASS  scan " in out and "FAIL  move_base" in out and "-> Is navigation running" in out
+    assert "FAIL  move_base" in out and "-> Is navigation running" in out
+    # The test's 10 Hz /scan: a loaded machine may starve its publisher below the 4 Hz a lidar must keep
+    # (the scan check's own levels are tested above): here it is a line of the report either way.
+    assert "PASS  scan          /scan at" in out or "WARN  scan          /scan at" in out
     # The summary counts the lines above it. This machine's own checks (its load, its disk) may warn
     # while other tests run beside this one: the count is checked against the lines, not fixed at 0.
     warnings = sum(1 for line in out.splitlines() if line.startswith("WARN"))

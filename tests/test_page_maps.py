@@ -147,6 +147,31 @@ def test_rename_a_map_from_the_page_and_a_taken_name_is_said_in_words(sim, page)
     screenshot(page, "phone-maps-renamed")
 
 
+def test_a_late_answer_to_use_does_not_undo_what_the_robot_said_since(sim, page):
+    """On a slow link the answer to Use (the switch "starting") can come after the ``mode`` event
+    "running": the chip keeps the newer word instead of staying on "starting" for good."""
+    held = []
+
+    def hold_the_switch(route):
+        if route.request.method != "POST":
+            return route.continue_()
+        held.append((route, route.fetch()))  # answered by the server now, handed to the page later
+
+    row(page, "flat").wait_for()
+    page.route("**/mode", hold_the_switch)
+    row(page, "flat").locator("button", has_text="Use").tap()
+    wait_for(lambda: page.wait_for_timeout(20) or held, message="the page to ask for flat")
+    page.wait_for_function(MODE_JS, arg=["navigation", "flat"], timeout=SWITCH * 1000)  # the event came first
+    route, answer = held[0]
+    assert answer.json()["state"] != "running"  # what the server said when asked: still switching
+    with page.expect_response("**/mode"):
+        route.fulfill(response=answer)
+    page.evaluate("() => new Promise((done) => setTimeout(done, 50))")  # the answer's handlers have run
+    page.unroute("**/mode")
+    assert page.text_content("#mode") == "navigating on flat"
+    assert page.get_attribute("#mode", "data-state") == "running"
+
+
 def test_screenshots_of_the_maps_tab(sim, browser):
     for name, device in (("landscape-maps", LANDSCAPE), ("desktop-maps", DESKTOP)):
         page = browser.open(sim.url + "/", device=device)

@@ -3,7 +3,7 @@ import {api, authorisedFetch, askTokenAgain} from "./api.js";
 import {Joystick, KeyDrive} from "./joystick.js";
 import {Live} from "./live.js";
 import {MapView} from "./mapview.js";
-import {initPanels, showMode, loadMaps} from "./panels.js";
+import {initPanels, askMode, showModeEvent, loadMaps} from "./panels.js";
 import {initHealth} from "./health.js";
 import {clearError, initNotices, notify, report} from "./notice.js";
 import {StopSender} from "./stop.js";
@@ -209,9 +209,8 @@ function enableControls() {
   if (still) { joystick.release(); keys.release(); }
 }
 
-/** A mode body to the top bar, the where-is-the-robot banner and the stale note. */
+/** A mode body to the where-is-the-robot banner and the stale note (the top bar shows it by itself). */
 function showModes(m) {
-  showMode(m);
   showWhereabouts(m);
   showStaleNote();
 }
@@ -225,7 +224,7 @@ function resync() {
     if (s.estop) showEstop(s.estop);
     showBattery(s.battery);
   }));
-  api("GET", "/mode").then(showModes, (e) => { if (e.status === 404) $("mode").textContent = "robot"; });
+  askMode(() => api("GET", "/mode")).then(showModes, (e) => { if (e.status === 404) $("mode").textContent = "robot"; });
   quietly(loadWaypoints());
   quietly(loadMap());
   quietly(loadMaps());
@@ -249,7 +248,7 @@ live.on("run", (run) => {
 });
 live.on("explore", tellExploration);
 live.on("map", (m) => { if (m.version !== mapVersion) quietly(loadMap()); });
-live.on("mode", (m) => { showModes(m); quietly(loadMaps()); quietly(loadMap()); });
+live.on("mode", (m) => { showModeEvent(m); showModes(m); quietly(loadMaps()); quietly(loadMap()); });
 
 // ---- controls -------------------------------------------------------------------------
 

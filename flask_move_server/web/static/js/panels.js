@@ -13,6 +13,7 @@ const thumbnails = new Map();  // map name + modified -> object URL, so a list r
 const MODE_WORDS = {idle: "idle", mapping: "mapping", navigation: "navigating"};
 let configuredName = null;  // the configured map's name in GET /maps (/mode says it too, or null when shadowed)
 let shownMode = null;  // the last GET /mode body or mode event shown
+let modeEvents = 0;  // mode events so far: an answer to a request sent before the newest of them is older than it
 
 function modeText(m) {
   const text = (MODE_WORDS[m.mode] || m.mode) +
@@ -21,7 +22,7 @@ function modeText(m) {
 }
 
 /** Shows a `GET /mode` body (or `mode` event) in the top bar. */
-export function showMode(m) {
+function showMode(m) {
   const chip = $("mode");
   shownMode = m;
   chip.textContent = modeText(m);
@@ -32,6 +33,24 @@ export function showMode(m) {
   if (m.state === "failed" && m.message && ctx) ctx.report(new Error(m.message), "mode");
   $("save-map").hidden = m.mode !== "mapping";
   $("start-mapping").hidden = m.mode === "mapping";
+}
+
+/** A `mode` event: the newest word on the mode, always shown. */
+export function showModeEvent(m) {
+  modeEvents += 1;
+  showMode(m);
+}
+
+/**
+ * Shows the mode body `request()` answers (and resolves to the newest body shown), unless a `mode` event came while it was under way: on a slow
+ * link the answer to a switch ("starting") can come after the event "running", and is older than it.
+ */
+export function askMode(request) {
+  const seen = modeEvents;
+  return request().then((m) => {
+    if (seen === modeEvents) showMode(m);
+    return shownMode;  // the newest body either way
+  });
 }
 
 /** Reads `GET /maps` into the list: thumbnail, name, what it is, Use, Rename, Delete. */
@@ -115,7 +134,7 @@ function button(label, className, onClick) {
 
 const quietly = (promise) => promise.catch(() => {});
 
-function switchTo(body) { return quietly(ctx.call("POST", "/mode", body, "mode").then(showMode)); }
+function switchTo(body) { return quietly(askMode(() => ctx.call("POST", "/mode", body, "mode"))); }
 
 const mapping = () => $("mode").dataset.mode === "mapping";
 
@@ -180,7 +199,7 @@ async function saveMap(then = true) {
     saved = await ctx.call("POST", "/maps", body, "save", 60000).then(() => true, () => false);
   }
   quietly(loadMaps());
-  quietly(api("GET", "/mode").then(showMode));
+  quietly(askMode(() => api("GET", "/mode")));
   return saved;
 }
 
