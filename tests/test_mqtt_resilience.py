@@ -111,10 +111,9 @@ def test_a_flood_of_commands_never_delays_stop(tmp_path, broker):
         assert sim.get("/status").json()["mqtt"]["dropped_in"] > 0  # cut short, not queued
         _until_no_new_goal(sim)  # what was taken is done; a Stop now ends it
         assert sim.post("/stop").status_code == 200
-        # aborted: the flood's last goal ended by the move_base stand-in, with no reason given, before
-        # the Stop; the robot stands all the same. Seen in 2 of 5 runs since the HTTP server hands the
-        # GIL over at dispatch (issue 32), never before it in 3 runs of 4b8b2fb: not explained yet
-        wait_for(lambda: sim.navigation()["state"] in ("canceled", "succeeded", "aborted", "idle"),
+        # Never "aborted": a goal the /stop loop canceled before move_base heard it is canceled, not
+        # lost (tests/test_phantom_goals.py; 2 runs in 5 said "aborted" with no reason before that).
+        wait_for(lambda: sim.navigation()["state"] in ("canceled", "succeeded", "idle"),
                  message="the robot stopped")
         home.close()
     finally:

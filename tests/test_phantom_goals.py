@@ -77,3 +77,30 @@ def test_a_goal_no_move_base_acknowledges_is_given_up_with_the_reason(mute_robot
     assert "move_base did not acknowledge the goal" in str(failed.value)
     assert mute_robot.navigation_status()["state"] == "aborted"
     assert mute_robot.stop() is False  # nothing left canceling
+
+
+@pytest.fixture
+def slow_robot(robot_config, ros_node, unique_name):
+    """The real robot, its move_base one that has not heard the goal yet (a busy move_base, a slow
+    link): it publishes its status (without the goal), but the goal and its cancel are still on their way."""
+    slow = actionlib.ActionServer(unique_name + "/move_base", MoveBaseAction, goal_cb=lambda handle: None,
+                                  auto_start=False)
+    slow.start()
+    robot = cli.build_robot(robot_config, ros_node, no_drive())
+    wait_for(robot.navigator.server_ready, timeout=15, message="the action client to see the slow move_base")
+    slow.goal_sub.unregister()  # from now on goals and cancels are on their way, never there
+    slow.cancel_sub.unregister()
+    yield robot
+    robot.close()
+
+
+def test_a_goal_stopped_before_move_base_heard_it_ends_canceled(slow_robot):
+    """A Stop right after a goal (an MQTT flood beside /stop showed it): actionlib's client calls a goal
+    canceled before move_base acknowledged it *lost* at move_base's next status without it. The goal
+    was canceled (move_base keeps the cancel and recalls the goal when it comes), not aborted."""
+    seq = slow_robot.goto(Goal(Pose2D(1.0, 0.0, 0.0)))
+    assert slow_robot.stop() is True
+    with pytest.raises(NavigationFailed) as ended:
+        slow_robot.wait(seq, 10)
+    assert ended.value.state == "canceled"
+    assert slow_robot.navigation_status()["state"] == "canceled"

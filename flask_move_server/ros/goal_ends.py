@@ -26,7 +26,6 @@ ENDS_KEPT = 16  # replaced goals whose ends are kept for a client still waiting 
 _FROM_STATUS = {
     GoalStatus.SUCCEEDED: SUCCEEDED,
     GoalStatus.ABORTED: ABORTED,
-    GoalStatus.LOST: ABORTED,
     GoalStatus.REJECTED: REJECTED,
     GoalStatus.PREEMPTED: CANCELED,
     GoalStatus.RECALLED: CANCELED,
@@ -72,10 +71,20 @@ class GoalEnds:
 
     def _done(self, seq, status):
         self._acknowledged(seq)
-        state = _FROM_STATUS.get(status, ABORTED)
+        state = self._lost_end(seq) if status == GoalStatus.LOST else _FROM_STATUS.get(status, ABORTED)
         said = self._said(state)
         self._finish(seq, state, said)
         self._goal_lines.info("goal %d: %s%s", seq, state, " ({})".format(said) if said else "")
+
+    def _lost_end(self, seq):
+        """A goal actionlib's client calls lost: ``canceled`` when we were canceling it, else ``aborted``.
+
+        actionlib calls a goal canceled before move_base acknowledged it lost at move_base's next
+        status without it (a Stop just after a goal, move_base busy). move_base keeps the cancel
+        and recalls the goal when it comes (C++ and Python actionlib alike), so it was canceled.
+        """
+        with self._cond:
+            return CANCELED if seq == self._seq and self._state == CANCELING else ABORTED
 
     def _said(self, state):
         """move_base's own reason for a goal that failed (its status text: "Failed to find a valid plan…"), or None.
