@@ -38,3 +38,20 @@ def test_move_bases_answer_the_instant_a_goal_arrives_is_never_missed(ros_node, 
         for topic in (ac.pub_goal, ac.pub_cancel, ac.status_sub, ac.result_sub, ac.feedback_sub):
             topic.unregister()
         move_base.shutdown()
+
+
+def test_a_goal_is_stamped_with_rospy_now_on_the_wall_clock_and_in_sim_time(ros_node):
+    """stamp_now writes rospy.Time.now() into a message's own stamp: the wall clock, or /clock's
+    time under /use_sim_time (a Gazebo robot), never the wall clock then."""
+    import time
+
+    from flask_move_server.ros.convert import stamp_now
+
+    stamp = MoveBaseGoal().target_pose.header.stamp
+    assert stamp_now(stamp) is stamp and abs(stamp.to_sec() - time.time()) < 1.0
+    rospy.rostime._set_rostime(rospy.Time(1234, 5678))  # what rospy does on each /clock message
+    try:
+        assert (stamp_now(stamp).secs, stamp.nsecs) == (1234, 5678)
+    finally:
+        rospy.rostime._rostime_current = None  # back to the wall clock (_set_rostime takes Times only)
+    assert abs(stamp_now(stamp).to_sec() - time.time()) < 1.0

@@ -148,20 +148,22 @@ class GoalEnds:
 
         move_base answers a goal at once (active, or rejected); one sent as its stack was going away
         had no answer ever and stayed ``active`` for good: a waiting client waited its whole timeout.
+        The watch sleeps until the pending goal is due (or ``ack_patience`` when none is: a goal
+        sent meanwhile is due later), never on the goals' condition: a ``/goto`` that woke it
+        handed it the GIL just before its publish (~0.03 ms of every goal).
         """
         while not self._closed:
             with self._cond:
-                while self._unacknowledged is None and not self._closed:
-                    self._cond.wait()
                 pending = self._unacknowledged
-                if pending is None:
-                    return
-                seq, sent = pending
-                left = sent + self.ack_patience - time.monotonic()
-                if left > 0:
-                    self._cond.wait(left)
-                    continue
+            left = self.ack_patience if pending is None else pending[1] + self.ack_patience - time.monotonic()
+            if left > 0:
+                self._closing.wait(left)
+                continue
+            with self._cond:
+                if self._unacknowledged is not pending:
+                    continue  # acknowledged, or a newer goal, meanwhile
                 self._unacknowledged = None
+            seq = pending[0]
             self.abandon("move_base did not acknowledge the goal within {:.0f} s, so it was given up: is the "
                          "navigation stack running? (GET /mode, GET /health)".format(self.ack_patience),
                          "move_base did not acknowledge it within {:.0f} s".format(self.ack_patience), seq)

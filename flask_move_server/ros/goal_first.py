@@ -18,6 +18,8 @@ import rospy
 from actionlib import action_client as actionlib_client
 from actionlib.action_client import ClientGoalHandle, CommStateMachine
 
+from flask_move_server.ros.convert import stamp_now
+
 
 def publish_goals_first(action_client):
     """Make ``action_client`` (an ``actionlib.ActionClient``) send goals as described above.
@@ -45,8 +47,7 @@ def _init_goal(manager, spare, goal, transition_cb, feedback_cb):
         action_goal = spare.pop()
     except IndexError:  # two goals at once (one client sends one at a time): build this one now
         action_goal = manager.ActionGoal()
-    stamp = rospy.get_rostime()
-    action_goal.header.stamp = stamp
+    stamp = stamp_now(action_goal.header.stamp)  # a Time of the goal's own, built ahead with it
     _set_goal_id(action_goal.goal_id, stamp)
     action_goal.goal = goal
     with manager.list_mutex:
@@ -61,4 +62,4 @@ def _set_goal_id(goal_id, stamp):
     number = actionlib_client.g_goal_id
     actionlib_client.g_goal_id = number + 1
     goal_id.id = "%s-%i-%.3f" % (rospy.get_caller_id(), number, stamp.to_sec())
-    goal_id.stamp = stamp
+    goal_id.stamp.secs, goal_id.stamp.nsecs = stamp.secs, stamp.nsecs

@@ -28,7 +28,7 @@ from flask_move_server.core.goal_endings import failure_sentence, replaced_end
 from flask_move_server.process.log_limits import Throttled
 from flask_move_server.ros import master
 from flask_move_server.ros.action_status import read_status_lightly
-from flask_move_server.ros.convert import pose_from_msg, pose_stamped, write_pose
+from flask_move_server.ros.convert import pose_from_msg, pose_stamped, stamp_now, write_pose
 from flask_move_server.ros.direct import direct_publisher
 from flask_move_server.ros.goal_ends import (
     ACTIVE,
@@ -82,6 +82,7 @@ class Navigator(GoalEnds):
         self._released = False
         self._unacknowledged = None  # (seq, sent at) of a goal move_base has not answered yet
         self._ack_watch = None
+        self._closing = threading.Event()  # wakes the acknowledgement watch, which never waits on _cond
         self._closed = False
         self._aside = None  # a sentence (or "") while an ended goal is set aside: /status says idle
         self.trips = None  # a TripRecord keeping the goal under way on disk, or None
@@ -280,6 +281,7 @@ class Navigator(GoalEnds):
         """Release the action client's or the goal topic's connections. Idempotent."""
         with self._cond:
             self._closed = True
+            self._closing.set()
             self._cond.notify_all()
         if self._ack_watch is not None:
             self._ack_watch.join(2.0)
@@ -307,7 +309,8 @@ class Navigator(GoalEnds):
         if message is None:
             message = MoveBaseGoal()
         target = message.target_pose
-        target.header.frame_id, target.header.stamp = self._frame, rospy.Time.now()
+        target.header.frame_id = self._frame
+        stamp_now(target.header.stamp)
         write_pose(target.pose, pose)
         return message
 
