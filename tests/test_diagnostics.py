@@ -332,3 +332,23 @@ def test_move_base_missing_fails_in_navigation_warns_while_mapping_is_skipped_id
     assert check.level == level, check
     if mode == "mapping":
         assert "explore" in check.summary and "move_base:=false" in check.advice
+
+
+def test_in_idle_the_tf_check_passes_without_map_to_odom_and_still_names_a_missing_drive(robot, topics):
+    """A new robot starts idle, where nobody publishes map -> odom: its first doctor run passed
+    nothing but failed tf for it. In idle the chain checked starts at odom."""
+    observer = RosObserver(robot.node, topics.frames, (topics._scan.name, topics._odom.name, topics._amcl.name),
+                           robot.pose, robot.navigator)
+    topics.links.discard("map")
+    topics.frames.map = topics.frames.map + "_idle_never"  # a map frame nobody ever published
+    wait_for(lambda: checks.tf_check(observer.observe(0.3, "idle").links, "idle").level == "pass", timeout=10,
+             message="odom -> base_link -> laser heard")
+    line = checks.tf_check(observer.observe(0.3, "idle").links, "idle")
+    assert line.summary.startswith("tf {} -> {} -> laser".format(topics.frames.odom, topics.frames.base_link))
+    assert "is not expected in idle mode" in line.summary
+    navigating = checks.tf_check(observer.observe(0.3, "navigation").links, "navigation")
+    assert navigating.level == "fail" and "AMCL" in navigating.advice  # the same links, navigating: map is missing
+    topics.odom = False  # the drive stopped: odom -> base_link goes stale, idle or not
+    stale = wait_for(lambda: (lambda c: c if c.level == "warn" else None)(
+        checks.tf_check(observer.observe(0.3, "idle").links, "idle")), timeout=10, message="a stale odom link")
+    assert "drive" in stale.advice
