@@ -31,7 +31,7 @@ class FakeRobot:
         self.pose = pose
         self.estop = EStop()
         self.estop.when_engaged(lambda source: self.stop())
-        self._navigation = _Navigation()
+        self._navigation = _Navigation(lambda: self.move_base_ready)
 
     def goto(self, goal):
         self.calls.append(("goto", goal))
@@ -132,10 +132,11 @@ class FakeRobot:
 class _Navigation:
     """The goal state the facade reports (``navigation_status``)."""
 
-    def __init__(self):
+    def __init__(self, move_base_ready=lambda: True):
         self.state = IDLE
         self.goal = None
         self.seq = 0
+        self.server_ready = move_base_ready  # a move_base answers (the robot's move_base_ready)
 
     def start(self, goal):
         self.goal, self.state = goal, "active"

@@ -10,9 +10,13 @@ import pytest
 from move_base_msgs.msg import MoveBaseAction
 
 from flask_move_server.app import cli
-from flask_move_server.core.errors import NavigationFailed
+from flask_move_server.core.errors import NavigationFailed, WrongMode
+from flask_move_server.core.events import EventBus
 from flask_move_server.core.geometry import Goal, Pose2D
+from flask_move_server.modes.goal_gate import GoalGate
+from flask_move_server.modes.manager import ModeManager
 from tests.conftest import stop_process, wait_for
+from tests.modes_standin import StandInStack
 from tests.robot_fixtures import no_drive
 from tests.test_sim_e2e import SimServer
 
@@ -104,3 +108,20 @@ def test_a_goal_stopped_before_move_base_heard_it_ends_canceled(slow_robot):
         slow_robot.wait(seq, 10)
     assert ended.value.state == "canceled"
     assert slow_robot.navigation_status()["state"] == "canceled"
+
+
+def test_a_move_base_this_server_did_not_start_is_named_while_idle(mute_robot, robot_config):
+    """The seed guide's set-up: the owner's own launch files run move_base while this server's mode
+    is idle. A goal used to be refused as if nothing ran; now the refusal and /health say why."""
+    modes = ModeManager(robot_config, StandInStack(), EventBus())
+    try:
+        assert modes.status()["mode"] == "idle" and modes.status()["state"] == "running"
+        mute_robot.goal_gate = GoalGate(modes, mute_robot.navigator)
+        with pytest.raises(WrongMode) as refused:
+            mute_robot.goto(Goal(Pose2D(1.0, 0.0, 0.0)))
+        assert "move_base is running but was not started by this server" in str(refused.value)
+        assert "modes.stack: none" in str(refused.value)
+        health = mute_robot.health()
+        assert health["move_base"] == "unavailable" and "modes.stack: none" in health["note"]
+    finally:
+        modes.close()

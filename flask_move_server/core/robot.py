@@ -215,11 +215,15 @@ class Robot:
 
     def health(self):
         """The short answer of ``GET /health``."""
-        return {
+        body = {
             "status": "ok",
             "ros": self.node.health,
             "move_base": "ready" if self.takes_goals() else "unavailable",
         }
+        note = self.goal_gate.health_note() if self.goal_gate is not None else None
+        if note:
+            body["note"] = note
+        return body
 
     def takes_goals(self):
         """True when a goal sent now would be taken: move_base answers, and the mode runs (never waits)."""

@@ -12,6 +12,10 @@ from flask_move_server.core.errors import NavigationUnavailable, WrongMode
 IDLE_REFUSAL = ("The robot is idle: no navigation stack runs, so nothing takes goals. Start navigation on a map "
                 "first: POST /mode {\"mode\": \"navigation\", \"map\": NAME} (robotctl map use NAME; GET /maps "
                 "lists the maps).")
+FOREIGN_MOVE_BASE = ("move_base is running but was not started by this server (your own launch files?), and this "
+                     "server's mode is idle, so it sends it no goals. To send goals to your own move_base, set "
+                     "modes.stack: none in the server's config and restart it; to let this server run the stack, "
+                     "stop yours and start navigation: POST /mode {\"mode\": \"navigation\"}.")
 SWITCHED = ("The robot switched to {}, which stops the stack that had the goal: it was given up. Send it again "
             "once GET /mode says running.")
 
@@ -50,9 +54,18 @@ class GoalGate:
         if not self._navigator.abandon(SWITCHED.format(_describe(status)), "the mode is switching"):
             self._navigator.set_aside()
 
+    def foreign_move_base(self):
+        """True when the mode is idle (and settled) yet a move_base answers: one this server did not start."""
+        status, _ = self._modes.status_and_generation()
+        return status["mode"] == "idle" and status["state"] == "running" and self._navigator.server_ready()
+
+    def health_note(self):
+        """What ``GET /health`` adds for the owner (a move_base this server did not start), or None."""
+        return FOREIGN_MOVE_BASE if self.foreign_move_base() else None
+
     def _refusal(self, status):
         if status["mode"] == "idle":  # the owner's choice, not a failure: 409 like POST /pose
-            return WrongMode(IDLE_REFUSAL)
+            return WrongMode(FOREIGN_MOVE_BASE if self.foreign_move_base() else IDLE_REFUSAL)
         if status["state"] in ("starting", "stopping"):
             return NavigationUnavailable("The {} stack is {}: send the goal again once GET /mode says running."
                                          .format(status["mode"], status["state"]))

@@ -56,7 +56,8 @@ def build(config):
                                       None, {200: _json(_status())})},
         "/health": {"get": _open(_operation("Is the server up, ROS connected, move_base ready?", None, {
             200: _json(_object({"status": {"enum": ["ok"]}, "ros": {"type": "string"},
-                                "move_base": {"enum": ["ready", "unavailable"]}}))}))},
+                                "move_base": {"enum": ["ready", "unavailable"]},
+                                "note": {"type": "string"}}, ["status", "ros", "move_base"]))}))},
         "/events": {"get": _events()},
         "/openapi.json": {"get": _open(_operation("This description", None, {200: _json({"type": "object"})}))},
     }
