@@ -278,3 +278,56 @@ def test_the_way_home_is_tried_twice_then_the_map_is_saved_where_it_stands(outco
     assert done["state"] == "done" and maps.saved == [("flat", True)]
     assert len(robot.goals) == 2
     assert ("could not get back" in done["message"]) is not back, done["message"]
+
+
+# A room 5 m x 1 m known, open at both ends and through a gap in its top wall: three frontiers.
+WIDE = ["#" * 25 + "?" * 10 + "#" * 25] + ["?" * 5 + "." * 50 + "?" * 5] * 10 + ["#" * 60]
+
+
+class MovingRobot(Robot):
+    """As Robot, but it stands where its last goal that succeeded went (it starts at ``start``)."""
+
+    def __init__(self, outcomes, start=(1.5, 0.55)):
+        super().__init__(outcomes)
+        self.pose = Pose2D(start[0], start[1], 0.0)
+
+    def current_pose(self):
+        return self.pose
+
+    def run_goto(self, goal):
+        seq = super().run_goto(goal)
+        if self.ends[seq][0] == "succeeded":
+            self.pose = Pose2D(goal.pose.x, goal.pose.y, 0.0)
+        return seq
+
+
+def test_a_robot_that_cannot_move_ends_stuck_saves_nothing_and_keeps_mapping():
+    """The real stack's wedged robot: every frontier aborted where it stood. Not "the whole flat is
+    mapped": after two frontiers given up without moving, a goal back to where it has been gets
+    nowhere too, so the exploration ends stuck, saves nothing and leaves mapping running."""
+    robot = MovingRobot([("succeeded", None), ("aborted", "no valid plan"), ("aborted", "potential collision"),
+                         ("aborted", "no valid plan")])
+    maps, modes = Maps(grid(WIDE)), Modes()
+    x = explorer(robot, maps, modes)
+    x.start("flat")
+    wait_for(lambda: x.current()["state"] in ("done", "failed", "canceled", "stuck"), timeout=10, message="the end")
+    end = x.current()
+    assert end["state"] == "stuck", end
+    assert "could not move" in end["message"] and "Nothing was saved" in end["message"]
+    assert maps.saved == [] and modes.switches == ["mapping"]  # no save, no switch: mapping goes on
+    back = robot.goals[3].pose  # the check: back to where exploring began (1.5 m), not a frontier
+    assert (round(back.x, 2), round(back.y, 2)) == (1.5, 0.55)
+    assert end["goals"] == 3 and len(robot.goals) == 4
+
+
+def test_frontiers_out_of_reach_of_a_robot_that_can_move_are_given_up_and_it_is_done():
+    """The same two frontiers given up where it stood, but the robot can go back where it has been:
+    they were out of reach, so exploring goes on (here: nothing left), and the map is saved."""
+    robot = MovingRobot([("succeeded", None), ("aborted", "no valid plan"), ("aborted", "no valid plan")]
+                        + [("succeeded", None)] * 3)
+    maps = Maps(grid(WIDE))
+    x = explorer(robot, maps)
+    x.start("flat")
+    done = ended(x)
+    assert done["state"] == "done" and maps.saved == [("flat", True)]
+    assert len(robot.goals) == 5  # three frontiers, the check back, the way home

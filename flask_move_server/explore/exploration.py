@@ -2,7 +2,8 @@
 
 States: ``starting`` (switching to mapping), ``exploring`` (driving to frontiers), ``returning``
 (to where it started, or the ``dock`` place marked while mapping), ``saving`` (the map, then the
-switch ``then`` asks for), and the ends ``done``, ``failed``, ``canceled``. Pure: no rospy.
+switch ``then`` asks for), and the ends ``done``, ``failed``, ``canceled`` and ``stuck`` (the robot
+could not move: nothing saved, mapping goes on, ``explore/stuck.py``). Pure: no rospy.
 """
 
 import datetime
@@ -11,8 +12,8 @@ from dataclasses import dataclass, field
 from typing import Optional, Tuple
 
 STARTING, EXPLORING, RETURNING, SAVING = "starting", "exploring", "returning", "saving"
-DONE, FAILED, CANCELED = "done", "failed", "canceled"
-ENDED = (DONE, FAILED, CANCELED)
+DONE, FAILED, CANCELED, STUCK = "done", "failed", "canceled", "stuck"
+ENDED = (DONE, FAILED, CANCELED, STUCK)
 THEN = ("navigation", "idle")
 MAX_MINUTES = 240.0  # four hours: longer than any flat takes, short enough to catch a typo
 

@@ -13,7 +13,8 @@ import time
 
 from flask_move_server.core.errors import MoveServerError, NoPose, UnknownWaypoint
 from flask_move_server.core.geometry import Goal, Pose2D
-from flask_move_server.explore.exploration import DONE, EXPLORING, FAILED, RETURNING, SAVING
+from flask_move_server.explore.exploration import DONE, EXPLORING, FAILED, RETURNING, SAVING, STUCK
+from flask_move_server.explore.stuck import STUCK_AFTER, Trail, moved, stuck_message
 
 log = logging.getLogger(__name__)
 
@@ -76,10 +77,16 @@ class ExplorerWorker:
     def _explore(self, exp):
         """Drive to frontiers until none is left or time is up; False when the exploration ended."""
         blacklist, goal = [], None
-        empty = 0
+        empty, unmoved, trail = 0, 0, Trail(self._home)
         while self._still(exp):
             if goal is not None:
-                goal = self._follow(goal, blacklist)
+                ended, goal = goal, self._follow(goal, blacklist)
+                if goal is None:
+                    unmoved = self._unmoved_after(ended, unmoved, trail)
+                    if unmoved >= STUCK_AFTER:
+                        if not self._can_move(exp, trail):
+                            return self._stuck(exp, unmoved)
+                        unmoved = 0  # it moved: those frontiers were out of reach
             survey = self._survey(exp, blacklist)
             if goal is not None and survey is not None and not _still_there(goal, survey):
                 goal = None  # its frontier was seen: the next goal replaces this one (no cancel, no blacklist)
@@ -130,15 +137,58 @@ class ExplorerWorker:
             if state != "preempted":
                 log.info("explorer: frontier at (%.2f, %.2f) given up: %s %s", *goal.target, state, why or "")
                 blacklist.append(goal.target)
+                goal.given_up = True
             return None
         if goal.stalled(self._robot, self.progress_timeout):
             log.info("explorer: no progress toward (%.2f, %.2f) for %g s", *goal.target, self.progress_timeout)
             blacklist.append(goal.target)
+            goal.given_up = True
             self._robot.cancel_goal(goal.seq)
             return None
         return goal
 
-    def _send(self, exp, target):
+    def _unmoved_after(self, goal, unmoved, trail):
+        """Frontier goals given up in a row without the robot moving, counting ``goal`` (just ended)."""
+        try:
+            here = self._robot.current_pose()
+        except NoPose:
+            return unmoved
+        trail.add(here)
+        return unmoved + 1 if goal.given_up and not moved(goal.start, here) else 0
+
+    def _can_move(self, exp, trail):
+        """After frontiers given up without moving: True when a goal back to a place the robot has been
+        moves it (or there is no such place to tell by); False when it gets nowhere either."""
+        here = self._robot.current_pose()
+        back = trail.back_to(here)
+        if back is None:
+            return True
+        with self._lock:
+            exp.message = "Checking the robot can still move: back to x {:.1f}, y {:.1f}.".format(back.x, back.y)
+            self._changed(exp)
+        goal = self._send(exp, (back.x, back.y), counted=False)
+        if goal is None:
+            return True  # ended meanwhile (or refused: failed); the caller sees it
+        deadline = time.monotonic() + self.progress_timeout
+        state = "active"
+        while self._still(exp) and state in ("active", "canceling") and time.monotonic() < deadline:
+            state, _ = self._robot.goal_end(goal.seq, POLL)
+        self._robot.cancel_goal(goal.seq)
+        try:
+            return state == "succeeded" or moved(here, self._robot.current_pose())
+        except NoPose:
+            return True
+
+    def _stuck(self, exp, given_up):
+        """The robot cannot move: the exploration ends ``stuck``, nothing saved, mapping goes on."""
+        self._cancel_own_goal()
+        here = self._robot.current_pose()
+        with self._lock:
+            if self._still(exp):
+                self._end(exp, STUCK, stuck_message(here, given_up, exp.frontiers + given_up))
+        return False
+
+    def _send(self, exp, target, counted=True):
         """Send a goal to ``target`` facing away from the robot; the _Goal, or None when refused or ended."""
         with self._sending:
             if not self._still(exp):
@@ -154,11 +204,11 @@ class ExplorerWorker:
                 if not self._still(exp):  # a stop came as it was sent: this goal is ours to cancel
                     self._robot.cancel_goal(seq)
                     return None
-                exp.goals += 1
+                exp.goals += 1 if counted else 0
                 exp.target = target
                 self._seq = seq
                 self._changed(exp)
-        return _Goal(seq, target, here.distance_to(Pose2D(target[0], target[1], 0.0)))
+        return _Goal(seq, target, here)
 
     def _explored(self, exp, survey):
         with self._lock:
@@ -262,9 +312,10 @@ class ExplorerWorker:
 class _Goal:
     """A frontier goal under way, and how near the robot has come to it."""
 
-    def __init__(self, seq, target, distance):
-        self.seq, self.target = seq, target
-        self._best, self._since = distance, time.monotonic()
+    def __init__(self, seq, target, start):
+        self.seq, self.target, self.start = seq, target, start  # start: where the robot stood as it was sent
+        self.given_up = False  # aborted or stalled: its frontier blacklisted
+        self._best, self._since = math.hypot(target[0] - start.x, target[1] - start.y), time.monotonic()
 
     def wait(self, robot, timeout):
         robot.goal_end(self.seq, timeout)

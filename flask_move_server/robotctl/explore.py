@@ -3,7 +3,7 @@
 It sends ``POST /explore``. With ``--wait`` it follows ``GET /explore`` with a live line
 (``exploring: 3 frontiers left, 42 m² known, 5 goals, 1 unreachable, 2:10``) until the exploration
 ends, as ``route run --wait`` follows a run: exit 0 when the map was saved, 10 when the exploration
-failed, 11 when it was canceled (``robotctl stop``, the e-stop); ``--timeout S`` gives up waiting
+failed or the robot got stuck, 11 when it was canceled (``robotctl stop``, the e-stop); ``--timeout S`` gives up waiting
 (exit 12, it goes on). Ctrl-C stops the robot, which ends the exploration (exit 130).
 """
 
@@ -19,7 +19,7 @@ from flask_move_server.robotctl.text import LiveLine, in_robotctl_words, rewritt
 
 POLL_PERIOD = 0.5  # s between GET /explore while --wait follows an exploration
 ACTIVE = ("starting", "exploring", "returning", "saving")
-_EXITS = {"failed": ExitStatus.ABORTED, "canceled": ExitStatus.CANCELED}
+_EXITS = {"failed": ExitStatus.ABORTED, "stuck": ExitStatus.ABORTED, "canceled": ExitStatus.CANCELED}
 
 
 def cmd_explore(client, args):

@@ -41,6 +41,7 @@ export function exploreWords(e, elapsed = e.elapsed) {
     case "done": return ["Done: saved " + (e.map || e.save_as),
       progress(e.then === "idle" ? "The robot is idle now" : "Now navigating on it", mapped + " in " + clock(elapsed))];
     case "failed": return ["Exploring failed", withoutApi(e.message || "The robot gave no reason.")];
+    case "stuck": return ["Stuck: the robot could not move", withoutApi(e.message || "")];
     case "canceled": return ["Exploring stopped", capital(endedBy(e.message) || sentence(firstSentence(e.message))) +
       ". The map so far is not saved (Maps → Save as…)"];
     default: return [e.state, withoutApi(e.message || "")];
