@@ -146,10 +146,12 @@ def _tf_chain_check(links, note, first=0):
     stale = [(i, link) for i, link in enumerate(links) if link.found and link.age is not None and link.age > TF_MAX_AGE]
     if missing:
         names = ", ".join("{} -> {}".format(link.parent, link.child) for _, link in missing)
-        return Check("tf", FAIL, "tf {} is missing {}".format(chain, names), _tf_advice(first + missing[0][0], missing[0][1]))
+        index, link = missing[0]
+        return Check("tf", FAIL, "tf {} is missing {}".format(chain, names), _tf_advice(first + index, link))
     if stale:
         names = ", ".join("{} -> {} ({:.1f} s old)".format(link.parent, link.child, link.age) for _, link in stale)
-        return Check("tf", WARN, "tf {}: stale {}".format(chain, names), _tf_advice(first + stale[0][0], stale[0][1]))
+        index, link = stale[0]
+        return Check("tf", WARN, "tf {}: stale {}".format(chain, names), _tf_advice(first + index, link))
     return Check("tf", PASS, "tf {}{}".format(chain, note))
 
 
