@@ -347,3 +347,13 @@ def test_the_stacks_output_reaches_the_journal_at_its_level(line, level):
     import logging
 
     assert logging.getLevelName(child.level_of(line)) == level
+
+
+def test_every_node_of_the_stack_is_told_to_write_line_by_line():
+    """roslaunch's nodes write into the server's pipe: roscpp's stdout is then fully buffered (INFO
+    lines minutes late, spliced into WARN lines) unless rosconsole is told ROSCONSOLE_STDOUT_LINE_BUFFERED
+    (rosconsole 1.13.1 on), and rospy's unless PYTHONUNBUFFERED: the whole tree gets both."""
+    proc = child.StackProcess(["sh", "-c", "echo rosconsole=$ROSCONSOLE_STDOUT_LINE_BUFFERED python=$PYTHONUNBUFFERED"])
+    proc.start()
+    wait_for(lambda: proc.exit_code() is not None and proc.last_lines(), timeout=10, message="the line")
+    assert "rosconsole=1 python=1" in proc.last_lines()

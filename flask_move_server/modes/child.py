@@ -36,7 +36,11 @@ class StackProcess:
     def __init__(self, argv, env=None, keep_lines=40):
         self.argv = list(argv)
         self.marker = children.marker_value(os.getpid(), next(_serials))
-        self.env = dict(env if env is not None else os.environ, PYTHONUNBUFFERED="1")
+        # Every node's output line by line: a pipe makes stdout fully buffered, so roscpp's INFO lines came
+        # minutes late in 4 KB chunks, spliced into the WARN lines (stderr) between them. rospy's nodes
+        # heed PYTHONUNBUFFERED, roscpp's rosconsole (1.13.1 on) flushes each line with the other.
+        self.env = dict(env if env is not None else os.environ, PYTHONUNBUFFERED="1",
+                        ROSCONSOLE_STDOUT_LINE_BUFFERED="1")
         self.env[children.MARKER] = self.marker
         self.lines = collections.deque(maxlen=keep_lines)
         # In order: ["died", node, exit code, log file, its last line], ["cannot_launch", pkg, type, why].
