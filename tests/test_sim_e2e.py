@@ -207,6 +207,30 @@ def test_robotctl_doctor_on_the_simulated_robot(sim, capsys):
     assert "PASS  tf            tf map -> odom -> base_link -> laser" in out
 
 
+def _scan_match(sim):
+    return next(c for c in sim.get("/diagnostics?seconds=0.5").json()["checks"] if c["name"] == "scan_match")
+
+
+def test_the_doctor_matches_the_laser_against_the_map_and_doubts_a_pose_set_0_3_m_off(sim):
+    """A covariance is the filter's belief; the laser on the map is the evidence. Told a pose 0.3 m off
+    (the page's Pose set by eye), localization believes it and says so with confidence: the laser's
+    points miss the walls, and the doctor says so."""
+    wait_for(lambda: _still(sim, 0.3), timeout=30, message="the robot at rest")
+    line = _scan_match(sim)
+    assert line["level"] == "pass" and "lie on the map's walls" in line["summary"], line
+    truth = sim.pose()
+    off = {"x": truth["x"] + 0.3, "y": truth["y"], "yaw": truth["yaw"]}
+    try:
+        assert sim.post("/pose", off).status_code == 200
+        wait_for(lambda: abs(sim.pose()["x"] - off["x"]) < 0.05, timeout=10, message="the pose believed")
+        line = wait_for(lambda: (lambda c: c if c["level"] == "warn" else None)(_scan_match(sim)), timeout=10,
+                        message="the doctor to doubt the pose")
+        assert "does not match the map" in line["summary"] and "Pose" in line["advice"]
+    finally:
+        sim.post("/pose", {"x": truth["x"], "y": truth["y"], "yaw": truth["yaw"]})
+    wait_for(lambda: _scan_match(sim)["level"] == "pass", timeout=10, message="the right pose matched again")
+
+
 def test_sigterm_stops_everything_including_its_master(sim):
     master_pid = _rosmaster_pid(sim.master_port)
     assert master_pid is not None

@@ -129,7 +129,9 @@ class ServerParts:
 
         cfg = self.config
         topics = (cfg.diagnostics.scan_topic, cfg.drive.odom_topic, cfg.navigation.amcl_pose_topic)
-        observer = RosObserver(self._node, cfg.ros.frames, topics, robot.pose, robot.navigator)
+        maps = getattr(self, "maps", None)
+        observer = RosObserver(self._node, cfg.ros.frames, topics, robot.pose, robot.navigator,
+                               map_source=maps.source if maps is not None else None)
         return Doctor(observer, self.modes, cfg.maps_folder(), cfg.diagnostics.window, simulated=cfg.sim.enabled)
 
     def _report(self, stack, robot):

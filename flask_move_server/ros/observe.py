@@ -14,7 +14,10 @@ import rospy
 from nav_msgs.msg import Odometry
 from sensor_msgs.msg import LaserScan
 
+from flask_move_server.core.errors import MoveServerError
+from flask_move_server.core.geometry import Pose2D
 from flask_move_server.diagnostics.checks import BOX_RANGE, RosObservations, ScanSample, TfLink, TopicSample
+from flask_move_server.diagnostics.scan_match import match_share
 from flask_move_server.ros.convert import TF_ERRORS, pose_from_transform
 
 
@@ -49,7 +52,8 @@ class _Counter:
 class RosObserver:
     """Observes the robot's ROS graph for the doctor, on the server's node."""
 
-    def __init__(self, node, frames, topics, pose_tracker, navigator):
+    def __init__(self, node, frames, topics, pose_tracker, navigator, map_source=None):
+        self._map_source = map_source  # the map the laser is matched against (None: not matched)
         self._node = node
         self._frames = frames
         self._scan_topic, self._odom_topic, self._amcl_topic = topics
@@ -72,7 +76,33 @@ class RosObserver:
         if last_scan is not None:
             _describe_scan(last_scan, scan)
         return RosObservations(True, mode, scan, odom, self._links(scan.frame), self._navigator.server_ready(),
-                               self._amcl_publishers(), self._pose.amcl_spread)
+                               self._amcl_publishers(), self._pose.amcl_spread,
+                               self._scan_match(last_scan, mode))
+
+    def _scan_match(self, scan, mode):
+        """``(share, points)`` of the last scan on the map at the localized pose, or None (``scan_match.py``)."""
+        if scan is None or self._map_source is None or mode in ("idle", "mapping"):
+            return None
+        reading = self._pose.current()
+        laser = self._laser_mount(scan.header.frame_id.lstrip("/"))
+        try:
+            _, grid = self._map_source.current()
+        except MoveServerError:  # no map now
+            return None
+        if reading is None or laser is None:
+            return None
+        share, points = match_share(grid, reading.pose, laser, scan)
+        return None if share is None else (share, points)
+
+    def _laser_mount(self, frame):
+        """Where the laser sits on the robot (Pose2D in base_link), or None when tf does not say."""
+        if frame in ("", self._frames.base_link):
+            return Pose2D(0.0, 0.0, 0.0)
+        try:
+            t = self._pose.buffer.lookup_transform(self._frames.base_link, frame, rospy.Time(0))
+        except (TF_ERRORS + (AttributeError,)):
+            return None
+        return pose_from_transform(t.transform)
 
     def _links(self, scan_frame):
         f = self._frames

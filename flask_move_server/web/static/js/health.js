@@ -6,7 +6,7 @@ const $ = (id) => document.getElementById(id);
 const WORDS = {pass: "OK", warn: "Check", fail: "Fix", skip: "n/a"};
 const NAMES = {
   scan: "Lidar", scan_range: "Lidar range", tf: "Frames (tf)", odom: "Odometry", move_base: "Planner",
-  amcl: "Localization", localization: "Where am I", laser_yaw: "Lidar direction", power: "Power",
+  amcl: "Localization", localization: "Where am I", scan_match: "Laser on the map", laser_yaw: "Lidar direction", power: "Power",
   temperature: "Temperature", load: "CPU load", disk: "Disk", clock: "Clock", ros: "ROS",
 };
 let running = false;
