@@ -18,6 +18,8 @@ pytest.importorskip("playwright", reason="playwright is not installed (pip insta
 
 from flask_move_server.core.errors import ExploreConflict  # noqa: E402
 from flask_move_server.core.events import EventBus  # noqa: E402
+from flask_move_server.core.geometry import Pose2D  # noqa: E402
+from flask_move_server.explore.stuck import stuck_message  # noqa: E402
 from flask_move_server.waypoints.store import WaypointStore  # noqa: E402
 from flask_move_server.web import create_app  # noqa: E402
 from flask_move_server.web.events import StreamGate  # noqa: E402
@@ -142,6 +144,17 @@ def test_a_failure_is_told_in_red_with_the_robots_reason(server, page):
     server.explorer.advance(state="failed", message="Mapping did not start: slam_gmapping died (GET /mode says why).")
     assert strip_says(page, "Exploring failed")[1] == "Mapping did not start: slam_gmapping died."
     assert page.eval_on_selector("#explore", "e => getComputedStyle(e).backgroundColor") == "rgb(255, 205, 210)"
+
+
+def test_a_robot_that_could_not_move_is_told_in_red_with_where_it_stands(server, page):
+    explore(page, "attic")
+    strip_says(page, "Exploring: starting to map")
+    message = stuck_message(Pose2D(2.4, 1.1, 0.0), 2, 5)
+    server.explorer.advance(state="stuck", message=message)
+    title, text = strip_says(page, "Stuck: the robot could not move")
+    assert text == message and text.startswith("Stuck near x 2.4, y 1.1: drive the robot free")
+    assert page.eval_on_selector("#explore", "e => getComputedStyle(e).backgroundColor") == "rgb(255, 205, 210)"
+    screenshot(page, "phone-explore-stuck")
 
 
 def test_a_saved_name_asks_before_replacing_it(server, page):

@@ -40,12 +40,13 @@ class Trail:
 
 
 def stuck_message(here, given_up, left):
-    """What the owner reads when exploring ends ``stuck`` at ``here`` (Pose2D)."""
-    return ("The robot could not move: its last {} goals were given up where it stood, and a goal back to "
-            "where it had been got nowhere either. It may be wedged against something near x {:.1f}, y {:.1f}. "
-            "Nothing was saved and mapping goes on: drive it free with the joystick (or move it by hand), then "
-            "explore again to go on with this map, or save it (Maps, Save as). {} place{} left to look at."
-            .format(given_up, here.x, here.y, left, " was" if left == 1 else "s were"))
+    """What the owner reads when exploring ends ``stuck`` at ``here`` (Pose2D): what to do first (a
+    phone shows two lines of it), then what was seen."""
+    return ("Stuck near x {:.1f}, y {:.1f}: drive the robot free with the joystick (or move it by hand), then "
+            "explore again to go on with this map, or save it (Maps, Save as). Its last {} goals were given up "
+            "where it stood, and a goal back to where it had been got nowhere either. Nothing was saved; mapping "
+            "goes on. {} place{} left to look at."
+            .format(here.x, here.y, given_up, left, " was" if left == 1 else "s were"))
 
 
 def _within(a, b, radius):
