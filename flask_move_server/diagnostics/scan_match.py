@@ -32,8 +32,7 @@ def match_share(grid, pose, laser, scan):
     inside = (col >= 0) & (col < grid.width) & (row >= 0) & (row < grid.height)
     if int(inside.sum()) < MIN_POINTS:
         return None, int(inside.sum())
-    walls = _near_walls(grid)
-    return float(walls[row[inside], col[inside]].mean()), int(inside.sum())
+    return float(_near_walls(grid, row[inside], col[inside]).mean()), int(inside.sum())
 
 
 def _cells(grid, mx, my):
@@ -45,24 +44,16 @@ def _cells(grid, mx, my):
     return np.floor(gx / grid.resolution).astype(int), np.floor(gy / grid.resolution).astype(int)
 
 
-def _near_walls(grid):
-    """A boolean image (rows bottom first): a wall cell, or within NEAR_CELLS of one."""
+def _near_walls(grid, row, col):
+    """For each cell (``row``, ``col``, rows bottom first): a wall there or within NEAR_CELLS of it.
+    Only the cells around the end points are read, never the whole map (a gmapping map is 4000²)."""
     import numpy as np
 
     cells = np.frombuffer(grid.cells, dtype=np.int8).reshape(grid.height, grid.width)
-    walls = cells >= OCCUPIED
-    near = walls.copy()
+    near = np.zeros(len(row), dtype=bool)
     for dr in range(-NEAR_CELLS, NEAR_CELLS + 1):
         for dc in range(-NEAR_CELLS, NEAR_CELLS + 1):
-            near |= _shifted(walls, dr, dc)
+            r, c = row + dr, col + dc
+            on_map = (r >= 0) & (r < grid.height) & (c >= 0) & (c < grid.width)
+            near[on_map] |= cells[r[on_map], c[on_map]] >= OCCUPIED
     return near
-
-
-def _shifted(image, dr, dc):
-    import numpy as np
-
-    out = np.zeros_like(image)
-    h, w = image.shape
-    out[max(dr, 0):h + min(dr, 0), max(dc, 0):w + min(dc, 0)] = image[max(-dr, 0):h - max(dr, 0),
-                                                                      max(-dc, 0):w - max(dc, 0)]
-    return out
