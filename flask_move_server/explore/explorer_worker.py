@@ -159,7 +159,10 @@ class ExplorerWorker:
     def _can_move(self, exp, trail):
         """After frontiers given up without moving: True when a goal back to a place the robot has been
         moves it (or there is no such place to tell by); False when it gets nowhere either."""
-        here = self._robot.current_pose()
+        try:
+            here = self._robot.current_pose()
+        except NoPose:
+            return True  # cannot tell now: exploring goes on as before
         back = trail.back_to(here)
         if back is None:
             return True
