@@ -155,6 +155,9 @@ def test_a_robot_that_could_not_move_is_told_in_red_with_where_it_stands(server,
     assert text == message and text.startswith("Stuck near x 2.4, y 1.1: drive the robot free")
     assert page.eval_on_selector("#explore", "e => getComputedStyle(e).backgroundColor") == "rgb(255, 205, 210)"
     screenshot(page, "phone-explore-stuck")
+    page.set_viewport_size(DESKTOP["viewport"])  # a page opened later would not show an ending: this one, wider
+    strip_says(page, "Stuck: the robot could not move")
+    screenshot(page, "desktop-explore-stuck")
 
 
 def test_a_saved_name_asks_before_replacing_it(server, page):
