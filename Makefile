@@ -17,7 +17,7 @@ XDIST ?= -n 2 --dist loadscope
 ROS_DEBS := python3-rospy python3-rosmaster python3-roslaunch python3-rosgraph python3-actionlib \
 	python3-move-base-msgs python3-tf2-ros python3-geometry-msgs python3-nav-msgs \
 	python3-sensor-msgs python3-visualization-msgs python3-std-msgs python3-venv iproute2 \
-	python3-numpy
+	python3-numpy python3-std-srvs
 # systemd-analyze verify and rospack for the deployment tests (units, launch files).
 # python3-wheel: pip's --no-build-isolation installs (installer tests, test-debian) on Debian's setuptools.
 DEPLOY_TEST_DEBS := systemd rospack-tools python3-wheel

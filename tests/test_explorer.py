@@ -332,3 +332,17 @@ def test_frontiers_out_of_reach_of_a_robot_that_can_move_are_given_up_and_it_is_
     done = ended(x)
     assert done["state"] == "done" and maps.saved == [("flat", True)]
     assert len(robot.goals) == 5  # three frontiers, the check back, the way home
+
+
+def test_a_frontier_goal_that_ends_stuck_ends_the_exploration_stuck_with_the_robot_s_words():
+    """The robot said it is stuck and could not get out (recovery/: the goal ends ``stuck``): the exploration
+    ends stuck at once, in those words, saves nothing, and that frontier is not given up as unreachable."""
+    said = "Stuck near x 0.6, y 0.6: drive it out with the joystick (or move it by hand), then send it again."
+    robot = Robot([("stuck", said)])
+    maps, modes = Maps(grid(ROOM)), Modes()
+    x = explorer(robot, maps, modes)
+    x.start("flat")
+    wait_for(lambda: x.current()["state"] not in ("starting", "exploring"), timeout=10, message="the end")
+    end = x.current()
+    assert end["state"] == "stuck" and "It said: " + said in end["message"], end
+    assert maps.saved == [] and modes.switches == ["mapping"] and len(robot.goals) == 1

@@ -50,6 +50,9 @@ class Robot:
     def estop_status(self):
         return {"latched": self.latched, "source": "api" if self.latched else None}
 
+    def stuck_status(self):
+        return None
+
     def battery_status(self):
         return {"percentage": self.battery, "voltage": None, "charging": False}
 

@@ -63,6 +63,35 @@ class ServerParts:
         robot.explorer = explorer
         return explorer
 
+    def _build_recovery(self, stack, robot, store):
+        """The stuck watch (``stuck``): a stuck robot noticed from the laser and the goals' ends, said,
+        backed out (``recovery/``); closed before the robot."""
+        cfg = self.config
+        if not cfg.stuck.enabled:
+            return None
+        from flask_move_server.core.errors import MoveServerError
+        from flask_move_server.recovery import footprint
+        from flask_move_server.recovery.recovery import Recovery
+        from flask_move_server.recovery.watch import StuckWatch
+        from flask_move_server.ros.relocalize import NoMotionUpdate
+        from flask_move_server.sim.runner import default_navigation_config
+
+        def grid():
+            try:
+                return self.maps.source.current()[1]
+            except MoveServerError:
+                return None
+
+        polygon = footprint.read(cfg.sim.navigation_config or default_navigation_config())
+        recovery = Recovery(robot, cfg.stuck, polygon, places=store.all, grid=grid, relocalize=NoMotionUpdate(),
+                            events=self.events)
+        stack.callback(recovery.close)
+        watch = StuckWatch(recovery, self._node, robot, cfg.diagnostics.scan_topic, cfg.drive.odom_topic,
+                           cfg.ros.frames.base_link)
+        stack.callback(watch.start().close)
+        robot.recovery = recovery
+        return recovery
+
     def _build_happenings(self, stack, robot):
         """What the robot did, by name (arrived, failed, run_done, estop, explore_done), for MQTT and for
         the webhooks ``webhooks:`` lists (POSTed from a queue of their own); both closed before the robot."""
@@ -108,6 +137,7 @@ class ServerParts:
 
     def _build_vda5050(self, stack, link, store):
         """The robot as a VDA 5050 vehicle on ``link`` (docs/fleet.md): orders run on the run executor."""
+        from flask_move_server.recovery import footprint
         from flask_move_server.sim.dwa import load as planner_limits
         from flask_move_server.sim.runner import default_map, default_navigation_config
         from flask_move_server.vda5050 import messages
@@ -115,7 +145,7 @@ class ServerParts:
 
         cfg = self.config
         folder = cfg.sim.navigation_config or default_navigation_config()
-        factsheet = messages.factsheet(cfg.mdns.hostname, planner_limits(folder), messages.read_footprint(folder))
+        factsheet = messages.factsheet(cfg.mdns.hostname, planner_limits(folder), footprint.read_polygon(folder))
         own_map = os.path.splitext(os.path.basename(cfg.sim.map or default_map()))[0] if cfg.sim.enabled else "default"
         vehicle = Vehicle(link, cfg.mqtt.vda5050, cfg.mdns.hostname, self.robot, self.runs, store, self.modes,
                           factsheet, own_map=own_map)

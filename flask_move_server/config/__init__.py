@@ -252,7 +252,20 @@ class ExploreConfig:
     progress_timeout: float = checked(rules.positive, default=30.0)
 
 
-WEBHOOK_EVENTS = ("arrived", "failed", "run_done", "estop", "explore_done")
+@dataclass
+class StuckConfig:
+    """A stuck robot: noticed from the laser and the goals' ends, said, and backed out (docs/commanding.md)."""
+
+    enabled: bool = True
+    back_out: bool = True  # back out by itself when a goal got it stuck and the laser shows room behind
+    back_out_distance: float = checked(rules.positive, default=0.3)  # m at most, each time
+    back_out_speed: float = checked(rules.positive, default=0.1)  # m/s: at or above what the drive can crawl at
+    clearance: float = checked(rules.non_negative, default=0.05)  # m kept from what the laser sees behind
+    tries: int = checked(rules.non_negative, default=2)  # back-outs for one goal before it ends stuck
+    quick_abort: float = checked(rules.positive, default=20.0)  # s: a goal aborted sooner, not moving, counts
+
+
+WEBHOOK_EVENTS = ("arrived", "failed", "run_done", "estop", "explore_done", "stuck")
 
 
 @dataclass
@@ -322,6 +335,7 @@ class Config:
     modes: ModesConfig = field(default_factory=ModesConfig)
     diagnostics: DiagnosticsConfig = field(default_factory=DiagnosticsConfig)
     explore: ExploreConfig = field(default_factory=ExploreConfig)
+    stuck: StuckConfig = field(default_factory=StuckConfig)
     mqtt: MqttConfig = field(default_factory=MqttConfig)
     webhooks: List[WebhookConfig] = field(default_factory=list)
     battery: BatteryConfig = field(default_factory=BatteryConfig)

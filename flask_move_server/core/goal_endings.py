@@ -11,6 +11,7 @@ _SENTENCES = {
     "canceled": "The goal{to} was canceled before the robot arrived.",
     "canceling": "The goal{to} was canceled before the robot arrived.",
     "idle": "The goal{to} is gone (the server restarted?).",
+    "stuck": "The robot got stuck on its way{to} and could not get itself out.",
 }
 
 

@@ -12,6 +12,9 @@ The names (the ``events`` a webhook lists, config.WEBHOOK_EVENTS) and their data
 - ``estop``: the e-stop latch engaged (not again for a press while it is latched). ``{"source"}``.
 - ``explore_done``: an exploration ended (``done``, ``failed``, ``canceled``); the data is the
   exploration as ``GET /explore`` shows it. Once per exploration.
+- ``stuck``: the robot noticed it is stuck (``recovery/``): ``/status``'s ``stuck`` as it was then
+  (``{"state", "message", "since", "place", "count", "freed"}``). Once each time, exploring too; a
+  goal that then ends ``stuck`` is also ``failed``.
 
 A goal canceled (``POST /stop``, a run paused, teleop) or replaced by a newer goal is neither
 ``arrived`` nor ``failed``. While an exploration is under way its own goals (frontiers, the way
@@ -33,9 +36,10 @@ from flask_move_server.missions.history import ENDED as RUN_ENDS
 
 log = logging.getLogger(__name__)
 
-ARRIVED, FAILED, RUN_DONE, ESTOP, EXPLORE_DONE = "arrived", "failed", "run_done", "estop", "explore_done"
-NAMES = (ARRIVED, FAILED, RUN_DONE, ESTOP, EXPLORE_DONE)
-GOAL_FAILURES = ("aborted", "rejected", "lost")  # the navigator reads a lost goal as aborted
+ARRIVED, FAILED, RUN_DONE, ESTOP, EXPLORE_DONE, STUCK = (
+    "arrived", "failed", "run_done", "estop", "explore_done", "stuck")
+NAMES = (ARRIVED, FAILED, RUN_DONE, ESTOP, EXPLORE_DONE, STUCK)
+GOAL_FAILURES = ("aborted", "rejected", "lost", "stuck")  # the navigator reads a lost goal as aborted
 RUNS_REMEMBERED = 200  # run ids whose end was told: a late repeat of an ended run's event is not told again
 
 
@@ -62,11 +66,13 @@ class Happenings:
         self._exploring = False
         self._explore_told = None  # (started, save_as) of the last exploration whose end was told
         self._estop_told = 0  # the latch's engagements when the last was told
+        self._stuck_told = 0  # the stuck count when the last was told
         robot.navigator.when_ended(self._goal_ended)
         robot.estop.when_engaged(self._estop_engaged)
         if events is not None:
             events.listen("run", self._run_changed)
             events.listen("explore", self._explore_changed)
+            events.listen("stuck", self._stuck_changed)
 
     def listen(self, callback):
         """Call ``callback(name, data)`` on every happening, in the thread where it happened (sometimes under
@@ -137,6 +143,16 @@ class Happenings:
             self._exploring, self._explore_told = False, key
         if first:
             self._tell(EXPLORE_DONE, dict(exploration))
+
+    def _stuck_changed(self, stuck):
+        """The ``stuck`` event: ``stuck`` once each time the robot noticed it (its count grew)."""
+        if not isinstance(stuck, dict) or stuck.get("state") == "free":
+            return
+        with self._lock:
+            if stuck.get("count", 0) <= self._stuck_told:
+                return
+            self._stuck_told = stuck.get("count", 0)
+        self._tell(STUCK, dict(stuck))
 
     def _tell(self, name, data):
         with self._lock:

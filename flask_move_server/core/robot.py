@@ -37,6 +37,7 @@ class Robot:
         self.explorer = None  # explore/explorer.py: an exploration under way, ended by any other command too
         self.goal_gate = None  # modes/goal_gate.py, when this server runs the navigation stack
         self.ground_truth = None  # with --sim: the simulated robot's true pose (a callable), shown in /status
+        self.recovery = None  # recovery/recovery.py: the stuck state, told of every goal and stop
 
     def goto(self, goal, via="POST /goto"):
         """Send the robot to ``goal``; returns the goal's sequence number. Ends a run under way, saying
@@ -67,6 +68,8 @@ class Robot:
         if self.goal_gate is not None:
             self.goal_gate.confirm(ticket, seq)
         self.teleop_control.end_command()
+        if self.recovery is not None:
+            self.recovery.goal_sent(seq)
         self._unless_latched_meanwhile()
         return seq
 
@@ -94,7 +97,10 @@ class Robot:
         Never waits for a run's goal being sent: the run notices it was ended and cancels that goal itself.
         """
         self._end_run(reason, wait_for_send=False)
-        return self.halt()
+        canceled = self.halt()
+        if self.recovery is not None:
+            self.recovery.commanded()
+        return canceled
 
     def halt(self):
         """Cancel the goal, end teleop, command zero velocity; a run under way is left as it is (its pause)."""
@@ -121,8 +127,10 @@ class Robot:
 
     def busy_with(self):
         """Why the robot is busy with something a schedule must not cut short (a goal, the joystick), or None."""
-        if self.teleop_control.status()["active"]:
-            return "The robot was being driven by joystick."
+        teleop = self.teleop_control.status()
+        if teleop["active"]:
+            return ("The robot was backing out of a tight spot." if teleop.get("by") == "back_out"
+                    else "The robot was being driven by joystick.")
         if self.navigator.active:
             target = self.navigator.status().get("target")
             return "The robot was on its way to {}.".format(target or "a goal")
@@ -198,10 +206,15 @@ class Robot:
             "motors": self.drive.status(),
             "estop": self.estop.status(),
             "battery": self.battery_status(),
+            "stuck": self.stuck_status(),
             "ros": {"state": self.node.health, "master_uri": self.node.master_uri, "node": self.node.name,
                     "failed_parts": self.node.failed_parts},
             **self._simulated(),
         }
+
+    def stuck_status(self):
+        """``/status`` ``stuck`` (recovery/recovery.py), or None when the stuck watch is off."""
+        return self.recovery.status() if self.recovery is not None else None
 
     def battery_status(self):
         """``{"percentage", "voltage", "charging", "age"}`` of the battery's last reading, or None (never heard)."""

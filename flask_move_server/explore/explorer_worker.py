@@ -81,6 +81,8 @@ class ExplorerWorker:
         while self._still(exp):
             if goal is not None:
                 ended, goal = goal, self._follow(goal, blacklist)
+                if ended.stuck:  # the robot said so itself, and could not get out: no frontier is to blame
+                    return self._stuck(exp, 0, ended.stuck)
                 if goal is None:
                     unmoved = self._unmoved_after(ended, unmoved, trail)
                     if unmoved >= STUCK_AFTER:
@@ -133,6 +135,9 @@ class ExplorerWorker:
         if state == "succeeded":
             blacklist.append(goal.target)
             return None
+        if state == "stuck":  # recovery/: stuck and not backed out; the frontier is not given up
+            goal.stuck = why or "stuck"
+            return None
         if state not in ("active", "canceling"):
             if state != "preempted":
                 log.info("explorer: frontier at (%.2f, %.2f) given up: %s %s", *goal.target, state, why or "")
@@ -182,13 +187,14 @@ class ExplorerWorker:
         except NoPose:
             return True
 
-    def _stuck(self, exp, given_up):
-        """The robot cannot move: the exploration ends ``stuck``, nothing saved, mapping goes on."""
+    def _stuck(self, exp, given_up, said=None):
+        """The robot cannot move: the exploration ends ``stuck``, nothing saved, mapping goes on. ``said``:
+        what the robot said of it (recovery/), else it was told by ``given_up`` frontiers in a row."""
         self._cancel_own_goal()
         here = self._robot.current_pose()
         with self._lock:
             if self._still(exp):
-                self._end(exp, STUCK, stuck_message(here, given_up, exp.frontiers + given_up))
+                self._end(exp, STUCK, stuck_message(here, given_up, exp.frontiers + given_up, said))
         return False
 
     def _send(self, exp, target, counted=True):
@@ -318,6 +324,7 @@ class _Goal:
     def __init__(self, seq, target, start):
         self.seq, self.target, self.start = seq, target, start  # start: where the robot stood as it was sent
         self.given_up = False  # aborted or stalled: its frontier blacklisted
+        self.stuck = None  # ended stuck (the robot said so, recovery/): what it said
         self._best, self._since = math.hypot(target[0] - start.x, target[1] - start.y), time.monotonic()
 
     def wait(self, robot, timeout):

@@ -39,14 +39,16 @@ class Trail:
         return next((p for p in reversed(self.places) if not _within(p, here, BACK_AT_LEAST)), None)
 
 
-def stuck_message(here, given_up, left):
+def stuck_message(here, given_up, left, said=None):
     """What the owner reads when exploring ends ``stuck`` at ``here`` (Pose2D): what to do first (a
-    phone shows two lines of it), then what was seen."""
+    phone shows two lines of it), then what was seen: ``said``, what the robot said of it (it noticed
+    it is stuck, and could not back out), or else ``given_up`` goals in a row that got it nowhere."""
+    seen = ("It said: {}".format(said) if said else "Its last {} goals were given up where it stood, and a goal "
+            "back to where it had been got nowhere either.".format(given_up))
     return ("Stuck near x {:.1f}, y {:.1f}: drive the robot free with the joystick (or move it by hand), then "
-            "explore again to go on with this map, or save it (Maps, Save as). Its last {} goals were given up "
-            "where it stood, and a goal back to where it had been got nowhere either. Nothing was saved; mapping "
+            "explore again to go on with this map, or save it (Maps, Save as). {} Nothing was saved; mapping "
             "goes on. {} place{} left to look at."
-            .format(here.x, here.y, given_up, left, " was" if left == 1 else "s were"))
+            .format(here.x, here.y, seen, left, " was" if left == 1 else "s were"))
 
 
 def _within(a, b, radius):

@@ -33,6 +33,7 @@ from flask_move_server.missions.run import (
     RUNNING,
     SKIPPED,
     SUCCEEDED,
+    WAITING,
     Run,
 )
 from flask_move_server.missions.run_worker import RunWorker, summary
@@ -157,13 +158,13 @@ class RunExecutor(RunWorker):
             if run.state == INTERRUPTED and run.trigger == "vda5050":
                 raise RunConflict("Run {} was a fleet manager's order (VDA 5050): after a restart the fleet manager "
                                   "sends it again; it is not resumed here.".format(run_id))
-            if run.state == PAUSED:
+            if run.state in WAITING:
                 self._robot.refuse_motion("runs are")
                 run.state, run.message, self._command = RUNNING, None, None
                 self._changed(run)
                 return run.as_dict()
             if run.state != INTERRUPTED:
-                raise RunConflict("Run {} is {}: only a paused or interrupted run can be resumed.".format(
+                raise RunConflict("Run {} is {}: only a paused, stuck or interrupted run can be resumed.".format(
                     run_id, run.state))
             self._refuse_start(mode)
             run.state, run.message = RUNNING, None
@@ -290,6 +291,7 @@ class RunExecutor(RunWorker):
         if not run.advance():
             self._finish(run, SUCCEEDED, summary(run))
             return
+        run.state = PAUSED if run.state in WAITING else run.state  # a stuck run skipped on: paused before the next
         run.message = "Paused before {}: resume goes there.".format(run.target)
         self._changed(run)
 

@@ -4,7 +4,9 @@ A run is what ``POST /runs`` starts and ``GET /runs/<id>`` shows; the executor c
 history keeps it across restarts. Its states::
 
     running ──▶ paused ──▶ running          (pause / resume)
-    running | paused ──▶ succeeded | failed | canceled
+    running ──▶ stuck ──▶ running           (the robot got stuck on the way and could not get itself
+                                             out: the stop is not missed; resume goes there again)
+    running | paused | stuck ──▶ succeeded | failed | canceled
     running | paused ──▶ interrupted ──▶ running   (the server stopped under it; resume)
     skipped                                   (a schedule found the robot busy: never ran)
 
@@ -14,10 +16,11 @@ Pure: no rospy, no Flask.
 import datetime
 from dataclasses import dataclass, field
 
-RUNNING, PAUSED, SUCCEEDED, FAILED, CANCELED, INTERRUPTED, SKIPPED = (
-    "running", "paused", "succeeded", "failed", "canceled", "interrupted", "skipped")
-STATES = (RUNNING, PAUSED, SUCCEEDED, FAILED, CANCELED, INTERRUPTED, SKIPPED)
-ACTIVE = (RUNNING, PAUSED)  # a run the robot is doing: at most one at a time
+RUNNING, PAUSED, STUCK, SUCCEEDED, FAILED, CANCELED, INTERRUPTED, SKIPPED = (
+    "running", "paused", "stuck", "succeeded", "failed", "canceled", "interrupted", "skipped")
+STATES = (RUNNING, PAUSED, STUCK, SUCCEEDED, FAILED, CANCELED, INTERRUPTED, SKIPPED)
+ACTIVE = (RUNNING, PAUSED, STUCK)  # a run the robot is doing: at most one at a time
+WAITING = (PAUSED, STUCK)  # a run waiting for a resume
 TRIGGERS = ("api", "schedule", "mqtt", "vda5050")
 KEPT_STOPS = 100  # visited / missed entries kept per run (a patrol "until stopped" must not grow for ever)
 

@@ -13,7 +13,7 @@ import logging
 
 from flask_move_server.core.errors import EStopLatched, MoveServerError, UnknownWaypoint
 from flask_move_server.core.geometry import Goal, Pose2D
-from flask_move_server.missions.run import CANCELED, FAILED, PAUSED, RUNNING, SUCCEEDED
+from flask_move_server.missions.run import CANCELED, FAILED, PAUSED, RUNNING, STUCK, SUCCEEDED, WAITING
 
 log = logging.getLogger(__name__)
 
@@ -36,7 +36,7 @@ class RunWorker:
 
     def _await_running(self, run):
         """Lock held: wait while paused; False once the run is no longer this worker's."""
-        while self._run is run and (run.state == PAUSED or run.holding) and not self._closed:
+        while self._run is run and (run.state in WAITING or run.holding) and not self._closed:
             self._lock.wait()
         return self._run is run and run.state == RUNNING and not self._closed
 
@@ -103,6 +103,10 @@ class RunWorker:
             elif command == "pause":  # the robot stopped short of it: resume sends it again
                 self._pause(run, "Paused at {}: resume sends it again.".format(run.target))
                 return
+            elif state == "stuck":  # not missed: it could not get on; once it is free, resume goes there
+                self._pause(run, "Stuck on the way to {}: {} Then resume the run: it goes there again.".format(
+                    run.target, why or "drive it out with the joystick."), STUCK)
+                return
             else:
                 run.miss(why or "the goal ended {}".format(state))
                 if run.on_failure == "stop":
@@ -122,9 +126,9 @@ class RunWorker:
         """Lock held: ``run`` ends as its own Cancel asked."""
         self._finish(run, CANCELED, "Canceled (POST /runs/{}/cancel).".format(run.id))
 
-    def _pause(self, run, message):
+    def _pause(self, run, message, state=PAUSED):
         """Lock held: ``run`` waits for a resume (the worker sleeps in :meth:`_await_running`)."""
-        run.state, run.message = PAUSED, message
+        run.state, run.message = state, message
         self._changed(run)
 
     def _dwell_then_advance(self, run, dwell, pause):

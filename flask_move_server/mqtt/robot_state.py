@@ -23,10 +23,10 @@ log = logging.getLogger(__name__)
 PERIOD = 1.0  # s between looks when nothing is told
 POSE_PERIOD = 1.0  # s: a moving robot's pose, at most this often
 MIN_PERIOD = 0.2  # s between two states, whatever changed
-WAKING_KINDS = ("mode", "map", "waypoints", "run", "explore", "estop")
+WAKING_KINDS = ("mode", "map", "waypoints", "run", "explore", "estop", "stuck")
 RUNNING_EXPLORATION = ("starting", "exploring", "returning", "saving")
 NAVIGATION_STATUS = {"active": "moving", "canceling": "moving", "succeeded": "arrived", "aborted": "failed",
-                     "rejected": "failed", "lost": "failed", "canceled": "stopped"}
+                     "rejected": "failed", "lost": "failed", "canceled": "stopped", "stuck": "stuck"}
 
 
 class RobotState:
@@ -101,9 +101,12 @@ class RobotState:
         mode = self._modes.status() if self._modes is not None else {}
         run = self._runs.active() if self._runs is not None else None
         exploring = self._exploring()
+        stuck = status.get("stuck") or {}
+        stuck = stuck if stuck.get("state") not in (None, "free") else None
         return {
-            "status": _status(nav, status.get("teleop") or {}, estop, run, exploring),
-            "message": nav.get("message"),
+            "status": "stuck" if stuck and not estop else _status(nav, status.get("teleop") or {}, estop, run,
+                                                                   exploring),
+            "message": stuck["message"] if stuck else nav.get("message"),
             "mode": mode.get("mode"),
             "map": mode.get("map"),
             "target": nav.get("target") if nav.get("state") in ("active", "canceling") else None,
@@ -131,13 +134,14 @@ def _but_battery(state):
 
 
 def _status(nav, teleop, estop, run, exploring):
-    """One word for what the robot does: estop, exploring, paused, moving, teleop, arrived, failed, stopped, idle."""
+    """One word for what the robot does: estop, exploring, paused, moving, teleop, arrived, failed, stopped, idle
+    (``stuck`` comes before it all but the e-stop: see build)."""
     if estop:
         return "estop"
     if exploring:
         return "exploring"
-    if run is not None and run["state"] == "paused":
-        return "paused"
+    if run is not None and run["state"] in ("paused", "stuck"):
+        return run["state"]
     if nav.get("state") in ("active", "canceling"):
         return "moving"
     if teleop.get("active"):

@@ -19,8 +19,13 @@ log = logging.getLogger("flask_move_server.ros.navigator")  # the goal lines' lo
 IDLE, ACTIVE, CANCELING, SUCCEEDED, ABORTED, CANCELED, REJECTED = (
     "idle", "active", "canceling", "succeeded", "aborted", "canceled", "rejected",
 )
-TERMINAL = (SUCCEEDED, ABORTED, CANCELED, REJECTED)
-UNDER_WAY = (ACTIVE, CANCELING)
+# A goal held while the robot gets itself out (recovery/recovery.py): move_base has let go of it, the
+# server has not. ``/status`` says ``stuck``; a waiting client still waits (it is under way: ``active``).
+# ``stuck``: it ended so, the robot could not get itself out.
+RECOVERING, STUCK = "recovering", "stuck"
+TERMINAL = (SUCCEEDED, ABORTED, CANCELED, REJECTED, STUCK)
+UNDER_WAY = (ACTIVE, CANCELING)  # move_base has the goal: its word ends it
+HELD = UNDER_WAY + (RECOVERING,)  # a cancel, a newer goal or a give-up ends it
 ENDS_KEPT = 16  # replaced goals whose ends are kept for a client still waiting on one
 
 _FROM_STATUS = {
@@ -49,9 +54,9 @@ class GoalEnds:
         """Lock held, a newer goal about to replace this one: ``(seq, state, goal, message)`` when it was
         under way, else None (its end was told when it came). Only the facts, on the way to the
         publish: :func:`end_of_replaced` makes the end told once the new goal is on its way."""
-        if not self._seq or self._state not in UNDER_WAY:
+        if not self._seq or self._state not in HELD:
             return None
-        return self._seq, self._state, self._goal, self._message
+        return self._seq, ACTIVE if self._state == RECOVERING else self._state, self._goal, self._message
 
     def _end_of_current(self):
         """Lock held, the current goal just ended: ``(seq, state, target, pose, why)`` for :meth:`when_ended`."""
@@ -73,8 +78,21 @@ class GoalEnds:
         self._acknowledged(seq)
         state = self._lost_end(seq) if status == GoalStatus.LOST else _FROM_STATUS.get(status, ABORTED)
         said = self._said(state)
+        if state == ABORTED and self._held_by_judge(seq, said):
+            return
         self._finish(seq, state, said)
         self._goal_lines.info("goal %d: %s%s", seq, state, " ({})".format(said) if said else "")
+
+    def _held_by_judge(self, seq, said):
+        """True when the judge of aborts (``judge_aborts``) held goal ``seq`` instead of letting it end."""
+        judge = self._judge
+        if judge is None:
+            return False
+        try:
+            return bool(judge(seq, said))
+        except Exception:  # a judge's bug must not lose the goal's end
+            log.exception("goal %d: judging its abort failed", seq)
+            return False
 
     def _lost_end(self, seq):
         """A goal actionlib's client calls lost: ``canceled`` when we were canceling it, else ``aborted``.
@@ -123,7 +141,7 @@ class GoalEnds:
         ``why``, its cancel sent; True when one was. For a goal whose move_base may never answer
         again: the master is gone, the stack is being switched or stopped, no acknowledgement."""
         with self._cond:
-            if self._state not in UNDER_WAY or (seq is not None and seq != self._seq):
+            if self._state not in HELD or (seq is not None and seq != self._seq):
                 return False
             seq, self._state, self._message = self._seq, ABORTED, why
             ended = self._end_of_current()

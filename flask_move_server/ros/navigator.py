@@ -34,14 +34,17 @@ from flask_move_server.ros.goal_ends import (
     ACTIVE,
     CANCELED,
     CANCELING,
+    HELD,
     IDLE,
+    RECOVERING,
+    STUCK,
     SUCCEEDED,
     TERMINAL,
-    UNDER_WAY,
     GoalEnds,
     end_of_replaced,
 )
 from flask_move_server.ros.goal_first import publish_goals_first
+from flask_move_server.ros.goal_hold import GoalHold
 from flask_move_server.ros.node import WAITING
 from flask_move_server.ros.readiness import ServerReadiness
 
@@ -51,7 +54,7 @@ GOAL_LINES_BURST = 20  # goal lines logged per 10 s; the rest of a storm is coun
 
 
 
-class Navigator(GoalEnds):
+class Navigator(GoalEnds, GoalHold):
     """Sends the robot to goals and tracks the current one."""
 
     cancel_patience = 5.0  # s without move_base's word on a cancel before /status asks whether it runs
@@ -87,6 +90,7 @@ class Navigator(GoalEnds):
         self._aside = None  # a sentence (or "") while an ended goal is set aside: /status says idle
         self.trips = None  # a TripRecord keeping the goal under way on disk, or None
         self._end_listeners = []  # callback(seq, state, target, pose, why), see when_ended
+        self._judge = None  # callback(seq, said) -> True when it held the aborted goal (see judge_aborts)
         self._goal_lines = Throttled(log, "goal lines", burst=GOAL_LINES_BURST)  # a goal storm: not 300 lines/s
         node.when_ready(self._setup)
         node.when_lost(self._master_lost)
@@ -138,16 +142,7 @@ class Navigator(GoalEnds):
                     if self._client is not None:
                         self._expect_acknowledgement(seq)
                     self._cond.notify_all()
-                if self._client is not None:
-                    _settle_last_goal(self._client)
-                    self._client.send_goal(
-                        self._goal_message(goal.pose),
-                        done_cb=lambda status, result: self._done(seq, status),
-                        active_cb=lambda: self._acknowledged(seq),
-                        feedback_cb=lambda feedback: self._feedback(seq, feedback),
-                    )
-                else:
-                    self._goal_pub.publish(pose_stamped(goal.pose, self._frame, rospy.Time.now()))
+                self._publish_goal(seq, goal)
         finally:
             self._tell_end(end_of_replaced(replaced))  # the replaced goal's end: after the new goal is on its way
         self._goal_lines.info("goal %d: %s %s", seq, goal.target or "pose", goal.pose.as_dict())
@@ -155,6 +150,19 @@ class Navigator(GoalEnds):
             self.trips.started(goal)
         self._build_ahead()
         return seq
+
+    def _publish_goal(self, seq, goal):
+        """Goal ``seq`` to move_base (``_sending`` held): the action's goal, or the plain topic's pose."""
+        if self._client is not None:
+            _settle_last_goal(self._client)
+            self._client.send_goal(
+                self._goal_message(goal.pose),
+                done_cb=lambda status, result: self._done(seq, status),
+                active_cb=lambda: self._acknowledged(seq),
+                feedback_cb=lambda feedback: self._feedback(seq, feedback),
+            )
+        else:
+            self._goal_pub.publish(pose_stamped(goal.pose, self._frame, rospy.Time.now()))
 
     def _build_ahead(self):
         """The next goal's messages, built last: once this goal is on its way, and after the work that
@@ -182,15 +190,16 @@ class Navigator(GoalEnds):
         """
         with self._sending:
             with self._cond:
-                if self._state not in (ACTIVE, CANCELING) or seq not in (None, self._seq):
+                if self._state not in HELD or seq not in (None, self._seq):
                     return False
-                seq, newly = self._seq, self._state == ACTIVE
-                self._state = CANCELING if self._client is not None else CANCELED
+                seq, newly, held = self._seq, self._state != CANCELING, self._state == RECOVERING
+                self._state = CANCELING if self._client is not None and not held else CANCELED
                 if newly:
                     self._cancel_sent = time.monotonic()
                 ended = self._end_of_current() if self._state == CANCELED else None
                 self._cond.notify_all()
-            self._send_cancel()
+            if not held:  # a held goal's cancel went to move_base as it was held
+                self._send_cancel()
         self._goal_lines.info("goal %d: cancel %s", seq, "requested" if newly else "sent again")
         self._tell_end(ended)
         return newly
@@ -218,6 +227,8 @@ class Navigator(GoalEnds):
                 self._cond.wait(remaining)
             if self._seq != seq:
                 return replaced_end(*self._ends.get(seq, (ACTIVE, None, None)))
+            if self._state == RECOVERING:  # under way, as far as its waiting client is concerned
+                return ACTIVE, None
             return self._state, self._why(self._state)
 
     def _why(self, state):
@@ -235,14 +246,14 @@ class Navigator(GoalEnds):
 
     @property
     def active(self):
-        """True while the goal is under way and not yet asked to cancel."""
-        return self._state == ACTIVE
+        """True while the goal is under way (or held while the robot gets itself out) and not yet asked to cancel."""
+        return self._state in (ACTIVE, RECOVERING)
 
     def set_aside(self, why=None):
         """An ended goal is old news (the mode switched, the server restarted): ``/status`` says
         ``idle``, with ``why`` as its message, until the next goal. A goal under way is left alone."""
         with self._cond:
-            if self._state not in UNDER_WAY and (why or self._aside is None):  # a sentence said stays said
+            if self._state not in HELD and (why or self._aside is None):  # a sentence said stays said
                 self._aside = why or ""
 
     def status(self, reading=None):
@@ -253,7 +264,7 @@ class Navigator(GoalEnds):
             if self._aside is not None:
                 goal, state, message = None, IDLE, self._aside or None
         return {
-            "state": state,
+            "state": STUCK if state == RECOVERING else state,
             "message": message,
             "target": goal.target if goal else None,
             "goal": goal.pose.as_dict() if goal else None,

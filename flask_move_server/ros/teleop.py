@@ -29,6 +29,7 @@ class Teleop:
         self._node = node
         self._cond = threading.Condition()
         self._linear = self._angular = 0.0
+        self._by = "owner"
         self._deadline = None
         self._last_publish = 0.0
         self._pub = None
@@ -48,15 +49,16 @@ class Teleop:
         self._thread = threading.Thread(target=self._run, name="teleop", daemon=True)
         self._thread.start()
 
-    def command(self, linear, angular):
-        """Apply a velocity (clamped to the limits) for the deadman time."""
+    def command(self, linear, angular, by="owner"):
+        """Apply a velocity (clamped to the limits) for the deadman time; ``by``: who drives, ``owner``
+        (``POST /teleop``, the joystick) or ``back_out`` (the robot itself, getting unstuck: recovery/)."""
         if self._pub is None or not self._node.connected:
             raise RosUnavailable(
                 "ROS is not reachable at {}: cannot publish velocity commands.".format(self._node.master_uri)
             )
         linear, angular = clamp(linear, self._config.max_linear), clamp(angular, self._config.max_angular)
         with self._cond:
-            self._linear, self._angular = linear, angular
+            self._linear, self._angular, self._by = linear, angular, by
             self._deadline = time.monotonic() + self._config.deadman
             self._publish(linear, angular)
             self._cond.notify_all()
@@ -92,6 +94,7 @@ class Teleop:
             remaining = None if self._deadline is None else max(0.0, self._deadline - time.monotonic())
             return {
                 "active": remaining is not None,
+                "by": self._by if remaining is not None else None,
                 "linear": self._linear,
                 "angular": self._angular,
                 "remaining": None if remaining is None else round(remaining, 3),

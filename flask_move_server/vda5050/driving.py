@@ -17,7 +17,7 @@ from flask_move_server.vda5050.order import NEW, OrderBook, Refusal, stops_of, w
 
 log = logging.getLogger(__name__)
 
-ACTIVE = ("running", "paused")
+ACTIVE = ("running", "paused", "stuck")
 
 
 class Driving:
@@ -199,7 +199,7 @@ class Driving:
     def resume(self):
         with self._lock:
             run_id = self._run_id
-        if run_id is not None and self._run_state(run_id) == "paused":
+        if run_id is not None and self._run_state(run_id) in ("paused", "stuck"):
             self._runs.resume(run_id)  # EStopLatched: the action fails, saying so
         with self._lock:
             self.paused = False

@@ -8,11 +8,7 @@ node or edge actions: it only drives), and the protocol limits it checks. Pure: 
 
 import datetime
 import itertools
-import math
-import os
 import threading
-
-import yaml
 
 from flask_move_server.vda5050.order import MAX_ID, MAX_NODES
 
@@ -95,22 +91,3 @@ def _action(name, description):
                                       for key, kind in INIT_POSITION]
     return action
 
-
-def read_footprint(folder):
-    """The footprint polygon in ``folder``'s costmap_common.yaml, or a square of its robot_radius; None."""
-    try:
-        with open(os.path.join(folder, "costmap_common.yaml"), encoding="utf-8") as f:
-            params = yaml.safe_load(f) or {}
-    except (OSError, yaml.YAMLError):
-        return None
-    footprint = params.get("footprint")
-    if isinstance(footprint, list) and len(footprint) >= 3 and all(_point(p) for p in footprint):
-        return [[float(p[0]), float(p[1])] for p in footprint]
-    radius = params.get("robot_radius")
-    if isinstance(radius, (int, float)) and radius > 0:
-        return [[radius * math.cos(a), radius * math.sin(a)] for a in (k * math.pi / 4 for k in range(8))]
-    return None
-
-
-def _point(p):
-    return isinstance(p, list) and len(p) == 2 and all(isinstance(v, (int, float)) for v in p)

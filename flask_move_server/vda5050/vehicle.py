@@ -190,11 +190,15 @@ class Vehicle:
                 "nodeStates": book.node_states(), "edgeStates": book.edge_states(),
                 "actionStates": actions, "errors": errors, "paused": self._driving.paused or run_paused,
             }
+        stuck = robot.stuck_status()
+        if stuck is not None and stuck["state"] != "free":
+            body["errors"].append(stuck_error(stuck, book.order_id))
         # Read again after the order: a stop that came meanwhile (and dropped the order) is not "driving".
         nav, teleop = robot.navigation_status() if nav.get("state") == "active" else nav, robot.teleop_control.status()
         body.update({
             "driving": nav.get("state") == "active" or bool(teleop.get("active")),
-            "newBaseRequest": False, "operatingMode": "MANUAL" if teleop.get("active") else "AUTOMATIC",
+            "newBaseRequest": False,
+            "operatingMode": "MANUAL" if teleop.get("active") and teleop.get("by") == "owner" else "AUTOMATIC",
             "loads": [], "batteryState": battery, "information": information,
             "safetyState": {"eStop": ESTOP_TYPES.get(estop["source"], "REMOTE") if estop["latched"] else "NONE",
                             "fieldViolation": False},
@@ -217,6 +221,17 @@ class Vehicle:
             position["localizationScore"] = round(max(0.0, 1.0 - math.hypot(spread[0], spread[1])
                                                       / SPREAD_FOR_NO_SCORE), 3)
         return position
+
+
+def stuck_error(stuck, order_id):
+    """The error a stuck robot shows while it is (``/status`` ``stuck``): WARNING while it backs out by
+    itself, FATAL while it waits for someone to free it (the standard's "user intervention required").
+    The order is not finished: its nodes stay, and resuming it goes on."""
+    error = {"errorType": "stuck", "errorLevel": "WARNING" if stuck["state"] == "backing_out" else "FATAL",
+             "errorDescription": (stuck.get("message") or "The robot is stuck.")[:200]}
+    if order_id:
+        error["errorReferences"] = [{"referenceKey": "orderId", "referenceValue": str(order_id)}]
+    return error
 
 
 def _angle(yaw):

@@ -379,17 +379,19 @@ _PNG = {200: {"description": "a greyscale PNG, ETag = the map's version",
 
 
 def _status():
-    """``GET /status``: the battery described here, the other fields in docs/api.md."""
+    """``GET /status``: the battery and the stuck state described here, the other fields in docs/api.md."""
     schema = _object({}, ["pose", "navigation", "teleop", "motors", "estop", "battery"])
     schema["properties"] = {"battery": {"allOf": [_ref("Battery")], "nullable": True,
-                                        "description": "null until a sensor_msgs/BatteryState was heard"}}
+                                        "description": "null until a sensor_msgs/BatteryState was heard"},
+                            "stuck": {"allOf": [_ref("Stuck")], "nullable": True,
+                                      "description": "null with stuck.enabled false"}}
     return schema
 
 
 def _events():
-    stream = {"description": "Server-Sent Events: 'event: <kind>' (pose, status, estop, battery, plan, scan, mode, "
-                             "map, waypoints, run, explore, clock) and 'data: <one JSON object>', the latest of each "
-                             "kind first; a clock event every 2 s. docs/api.md lists each kind's fields.",
+    stream = {"description": "Server-Sent Events: 'event: <kind>' (pose, status, estop, battery, stuck, plan, scan, "
+                             "mode, map, waypoints, run, explore, clock) and 'data: <one JSON object>', the latest of "
+                             "each kind first; a clock event every 2 s. docs/api.md lists each kind's fields.",
               "content": {"text/event-stream": {"schema": {"type": "string"}}}}
     return _operation("The robot's state as it changes (Server-Sent Events)", None, {200: stream}, errors=(503,))
 

@@ -66,8 +66,15 @@ def _components(max_body_bytes):
                                     "description": "false when discharging, not charging or full; null: unknown"},
                        "age": {"type": "number", "minimum": 0, "description": "s since the reading was heard"}},
                       ["percentage", "voltage", "charging", "age"])
+    stuck = _object({"state": {"enum": ["free", "stuck", "backing_out"]},
+                     "message": {"type": "string", "nullable": True, "description": "where, what it does, what to do"},
+                     "since": {"type": "string", "nullable": True}, "place": {"type": "string", "nullable": True},
+                     "count": {"type": "integer", "description": "times it was stuck since the server started"},
+                     "freed": {"type": "integer", "description": "times it backed out by itself and went on"}},
+                    ["state", "message", "since", "place", "count", "freed"])
     return {
-        "schemas": {"Error": error, "Pose": pose, "Waypoint": waypoint, "EStop": estop, "Battery": battery},
+        "schemas": {"Error": error, "Pose": pose, "Waypoint": waypoint, "EStop": estop, "Battery": battery,
+                    "Stuck": stuck},
         "responses": responses,
         "securitySchemes": {"bearer": {"type": "http", "scheme": "bearer",
                                        "description": "needed when the robot has a token"}},
