@@ -107,10 +107,12 @@ class SimulatedStack:
 
     def _bring_up_navigation(self, map_yaml):
         from flask_move_server.sim.map_server import MapServerStandIn
+        from flask_move_server.sim.nomotion import NoMotionUpdateStandIn
 
         grid, planner = self._navigation_map(map_yaml)
         self._parts.append(MapServerStandIn(self._node, grid, self._config.ros.frames.map,
                                             self._config.sim.map_topic))
+        self._parts.append(NoMotionUpdateStandIn(self._node, self._world))
         self._world.localizing.set()
         self._move_base.set_planner(planner)
         self._move_base.serve()
@@ -126,7 +128,7 @@ class SimulatedStack:
             grid = occupancy.load(map_yaml)
         except ConfigError as exc:
             raise StackFailed("The simulated navigation could not load the map: {}".format(exc)) from exc
-        return grid, planner.Planner(costmap.Costmap(grid, sim.robot_radius, sim.safety_margin))
+        return grid, planner.Planner(costmap.Costmap(grid, sim.robot_radius, sim.safety_margin), navfn_start=True)
 
     def _bring_up_mapping(self, map_yaml):
         from flask_move_server.sim.mapping import SimMapping

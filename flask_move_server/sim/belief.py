@@ -22,6 +22,7 @@ SPREAD = 2.0  # standard deviations of the estimate within which the truth is in
 UPDATE_MIN_D = 0.1  # m of travel between AMCL's filter updates (config/amcl.yaml update_min_d)
 UPDATE_MIN_A = 0.2  # rad of turn between them (update_min_a)
 SETTLED = 1e-3  # m and rad: an error this small is none
+SLIDE_CAP = 0.15  # m the belief slides from the truth at most while the wheels turn against a wall
 
 
 class Belief:
@@ -51,15 +52,37 @@ class Belief:
     def moved(self, true):
         """The robot is now really at ``true``: one filter update per step of motion, while converging."""
         with self._lock:
-            if not self._converging or not _a_step(self._updated_at, true):
-                return
+            if self._converging and _a_step(self._updated_at, true):
+                self._update(true)
+
+    def slid(self, before, odometry, true, cap=SLIDE_CAP):
+        """The wheels turned by ``odometry`` (the motion the odometry counted) but the robot was blocked and
+        is really at ``true``: AMCL's motion model moves the filter by the odometry, so the belief slides from
+        ``before`` into what blocked it, at most ``cap`` metres from the truth; the laser pulls it back at the
+        filter's next updates (issue 33: the real robot's localized pose slid into the door jamb)."""
+        slid = compose(before, odometry)
+        if math.hypot(slid.x - true.x, slid.y - true.y) > cap:
+            return
+        with self._lock:
+            self._correction = compose(slid, inverse(true))
+            self._converging = True
             self._updated_at = true
-            error = compose(inverse(true), compose(self._correction, true))  # the belief in the robot's frame
-            halved = interpolate(error, IDENTITY, 0.5)
-            if math.hypot(halved.x, halved.y) < SETTLED and abs(halved.yaw) < SETTLED:
-                self._correction, self._converging = IDENTITY, False
-                return
-            self._correction = compose(compose(true, halved), inverse(true))
+
+    def look_again(self, true):
+        """One filter update without motion (AMCL's ``request_nomotion_update``), while converging."""
+        with self._lock:
+            if self._converging:
+                self._update(true)
+
+    def _update(self, true):
+        """Lock held: one filter update at ``true``, halving the error."""
+        self._updated_at = true
+        error = compose(inverse(true), compose(self._correction, true))  # the belief in the robot's frame
+        halved = interpolate(error, IDENTITY, 0.5)
+        if math.hypot(halved.x, halved.y) < SETTLED and abs(halved.yaw) < SETTLED:
+            self._correction, self._converging = IDENTITY, False
+            return
+        self._correction = compose(compose(true, halved), inverse(true))
 
 
 def _a_step(before, after):

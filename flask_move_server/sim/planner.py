@@ -20,10 +20,19 @@ SQRT2 = math.sqrt(2.0)
 
 
 class Planner:
-    """Plans collision-free paths for the robot on one costmap."""
+    """Plans collision-free paths for the robot on one costmap.
 
-    def __init__(self, costmap):
+    ``navfn_start``: plan from where the robot is localized as navfn does (navfn_ros.cpp
+    ``clearRobotCell`` frees the robot's own cell only, and the potential spreads to the 4 neighbours
+    of a cell below ``COST_OBS``): a robot localized in a lethal cell whose 4 neighbours are all lethal
+    gets no plan ("Failed to find a valid plan"), as a real robot whose localized pose slid into a wall.
+    Otherwise (the mapping stand-in's planner, whose walls reach a cell further than the body) the
+    nearest open cell is planned from.
+    """
+
+    def __init__(self, costmap, navfn_start=False):
         self.costmap = costmap
+        self.navfn_start = navfn_start
         w = costmap.width
         # (index offset, cost of the step into a cell of each cost value): 8-connected, margin cells dearer
         self._steps = [(off, [length * (1 + c) for c in range(256)]) for off, length in (
@@ -45,7 +54,10 @@ class Planner:
         start_index = self.costmap.index(*start)
         if start_index is None:
             raise PlanningFailed("outside_map", "the robot is outside the map")
-        escape = self._nearest_open(start_index)
+        escape = self._open_neighbour(start_index) if self.navfn_start else self._nearest_open(start_index)
+        if escape is None and self.navfn_start:
+            raise PlanningFailed("no_plan", "Failed to find a valid plan: the robot is localized with its "
+                                 "footprint on an obstacle of the map ({:.2f}, {:.2f})".format(*start))
         cells = None if escape is None else self._search(escape, goal_index)
         if cells is None:
             raise PlanningFailed(
@@ -56,6 +68,14 @@ class Planner:
         points = [self.costmap.point(p) for p in corners]
         points[0], points[-1] = tuple(start), tuple(goal)
         return points
+
+    def _open_neighbour(self, start):
+        """``start`` when it is open, else one of its 4 neighbours that is (navfn's rule), or None."""
+        cost, width = self.costmap.cost, self.costmap.width
+        for p in (start, start + 1, start - 1, start + width, start - width):
+            if cost[p] != LETHAL:
+                return p
+        return None
 
     def _nearest_open(self, start, reach=20):
         """``start``, or the nearest non-lethal cell when the robot stands too close to an obstacle."""

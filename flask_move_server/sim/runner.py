@@ -73,7 +73,7 @@ class Simulation:
         if self.world_only:
             log.info("simulated world only: the navigation stack is the launch files' (modes.stack: roslaunch)")
             return
-        own_planner = planner.Planner(self.costmap)
+        own_planner = planner.Planner(self.costmap, navfn_start=True)
         self.move_base = MoveBaseStandIn(
             sim, config.navigation.action, config.drive.cmd_vel_topic, config.navigation.simple_goal_topic,
             config.ros.frames, node, own_planner, planner_limits(sim), self.world.believed_pose,

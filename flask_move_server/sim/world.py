@@ -70,6 +70,7 @@ class SimWorld:
         self._stop = threading.Event()
         self.localizing = threading.Event()  # set: publish map → odom and /amcl_pose (the navigation mode sets it)
         self.belief = Belief()  # what the AMCL stand-in believes, beside the truth
+        self._last_odom = None  # (odometry, true pose) at the last /odom message
         self._thread = None
         self._pubs = None
         self._subs = ()
@@ -160,7 +161,11 @@ class SimWorld:
             return
         odom = pose_from_msg(msg.pose.pose)
         true = self.pose_at(msg.header.stamp.to_sec())
-        self.belief.moved(true)
+        last, self._last_odom = self._last_odom, (odom, true)
+        if last is not None and self.body.bumped:  # the wheels turn, the robot does not: the belief slides
+            self.belief.slid(self.belief.of(last[1]), compose(inverse(last[0]), odom), true)
+        else:
+            self.belief.moved(true)
         belief = self.belief.of(true)
         map_to_odom = compose(belief, inverse(odom))
         self._pubs["tf"].sendTransform(
