@@ -17,6 +17,7 @@ import {initRoutes, loadRoutes, showPastRuns} from "./routes.js";
 import {initRunStrip, loadRuns, tellRun} from "./runstrip.js";
 import {initExplore, loadExploration, tellExploration} from "./explore.js";
 import {showBattery} from "./battery.js";
+import {initStuck, showStuck} from "./stuck.js";
 
 const $ = (id) => document.getElementById(id);
 const map = new MapView($("map"), {overlays: [$("gesture")]});
@@ -71,6 +72,7 @@ function showNavigation(nav) {
     text = "going to " + where;  // short enough for most names on a phone; a longer one is cut, never the distance
     if (nav.distance_remaining != null) distance = nav.distance_remaining.toFixed(1) + " m";
   } else if (state === "succeeded") text = "arrived at " + where;
+  else if (state === "stuck") text = "stuck on the way to " + where;
   else if (state === "aborted" || state === "rejected") text = "failed: " + (nav.message ? withoutApi(nav.message) : "no way to " + where);
   else if (state === "canceled") text = document.body.dataset.run === "paused" ? "paused: the round waits" : "cancelled";
   else if (state === "idle" && nav.message) text = withoutApi(nav.message);
@@ -79,14 +81,16 @@ function showNavigation(nav) {
   $("nav-distance").textContent = distance;
   box.dataset.state = state;
   box.dataset.target = nav.target || "";
-  $("cancel").hidden = !(state === "active" || state === "pending");
-  map.setGoal(state === "active" || state === "pending" ? nav.goal : null);
-  if (!(state === "active" || state === "pending")) map.setPlan([]);
+  const going = state === "active" || state === "pending" || state === "stuck";
+  $("cancel").hidden = !going;
+  map.setGoal(going ? nav.goal : null);
+  if (!going) map.setPlan([]);
 }
 
 function showStatus(status) {
   if (status.navigation) showNavigation(status.navigation);
-  if (status.teleop && status.teleop.active) {  // a goal the joystick cancelled is not news while driving
+  if ("stuck" in status) showStuck(status.stuck);  // /status (the stream tells it as `stuck` events)
+  if (status.teleop && status.teleop.active && status.teleop.by !== "back_out") {  // a goal the joystick cancelled is not news while driving
     $("nav-text").textContent = "driving with the joystick";
     $("nav").dataset.state = "teleop";
   }
@@ -247,6 +251,7 @@ live.on("run", (run) => {
   if (run.trigger === "schedule") quietly(loadRoutes());  // its route's next run has moved on
 });
 live.on("explore", tellExploration);
+live.on("stuck", showStuck);
 live.on("map", (m) => { if (m.version !== mapVersion) quietly(loadMap()); });
 live.on("mode", (m) => { showModeEvent(m); showModes(m); quietly(loadMaps()); quietly(loadMap()); });
 
@@ -301,6 +306,7 @@ initHome({sendGoal, map, report});
 initWhereabouts({call, setGesture});
 initRunStrip({call, move, map, onRuns: showPastRuns});
 initRoutes({call, move, isLive, map, setGesture});
+initStuck({openDrive: () => document.querySelector('#tabs button[data-tab="drive"]').click()});
 initExplore({setOff, stop: () => { joystick.release(); keys.release(); stopping.send(); }, report, map, hint: flashHint});
 setGesture("go");
 showConnection("connecting");

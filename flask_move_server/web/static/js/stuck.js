@@ -1,0 +1,23 @@
+// The robot says it is stuck (`stuck` in GET /status, and its `stuck` events), in its own words:
+// where, what it is doing about it, what to do. Backing out by itself: amber, nothing to press;
+// waiting for its owner: red, with a button that brings the joystick up. A phone shows two lines of
+// the words (they start with what matters); a tap shows them all.
+const $ = (id) => document.getElementById(id);
+
+/** Shows `/status`'s `stuck` ({state, message, place, ...}, or null): the banner while it is not free. */
+export function showStuck(stuck) {
+  const on = !!stuck && stuck.state !== "free";
+  const banner = $("stuck");
+  if (banner.hidden === on || banner.dataset.state !== (on ? stuck.state : "")) banner.dataset.open = "0";
+  banner.hidden = !on;
+  banner.dataset.state = on ? stuck.state : "";
+  document.body.dataset.stuck = on ? stuck.state : "";
+  $("stuck-text").textContent = on ? stuck.message || "Stuck." : "";
+  $("stuck-drive").hidden = !on || stuck.state === "backing_out";
+}
+
+/** Wires the banner: a tap on the words shows them whole; "Joystick" opens the Drive tab. */
+export function initStuck({openDrive}) {
+  $("stuck-text").onclick = () => { $("stuck").dataset.open = $("stuck").dataset.open === "1" ? "0" : "1"; };
+  $("stuck-drive").onclick = openDrive;
+}
