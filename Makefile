@@ -95,11 +95,13 @@ $(DEBIAN_VENV)/.installed: setup.py Makefile
 # test_client_routes.py, test_runs_robot.py), exploring (test_explore_web.py, test_client_explore.py,
 # test_explorer.py), Home Assistant over paho 1.6 (test_home_assistant.py, test_mqtt_resilience.py),
 # VDA 5050 over paho 1.6 driven by the npm master (test_vda5050_master.py; test_vda5050.py's many
-# drives are make test's, and so is the sim battery's drive to the kitchen and back).
+# drives are make test's, and so is the sim battery's drive to the kitchen and back; so are the stuck robot's
+# drives, test_stuck_ros.py and test_stuck_sim.py: rospy and the sim only).
 DEBIAN_SKIPS := --ignore=tests/test_stack_launched.py --ignore=tests/test_modes_robot.py \
 	--ignore=tests/test_sim_modes.py --ignore=tests/test_runs_sim.py --ignore=tests/test_explore_sim.py \
 	--ignore=tests/test_sim_life.py --ignore=tests/test_sim_e2e.py --ignore=tests/test_launch.py \
 	--ignore=tests/test_sim_real_stack.py --ignore=tests/test_sim_whereabouts.py --ignore=tests/test_vda5050.py \
+	--ignore=tests/test_stuck_sim.py --ignore=tests/test_stuck_ros.py \
 	--deselect tests/test_battery.py::test_the_sim_battery_drains_while_driving_and_charges_on_the_dock
 
 # The servers roslaunch starts (scripts/flask_move_server_node) run on the same Debian packages, and

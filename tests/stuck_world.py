@@ -1,8 +1,9 @@
 """A small world for the stuck tests on real ROS topics: a base whose wheels may turn without moving it.
 
 It hears ``cmd_vel`` (teleop's, the back-out's) and publishes what a base with the L298N drive would:
-``odom`` counting the commands (open loop), and ``scan`` cast by the sim's laser on the demo flat from
-where the robot really is (in base_link: the laser at its origin). ``pushing`` stands for move_base
+``odom`` counting the commands (open loop), ``scan`` cast by the sim's laser on the demo flat from
+where the robot really is (in base_link: the laser at its origin), and tf map → base_link where it
+really is (a localization that does not slide). ``pushing`` stands for move_base
 driving it forward (the stand-ins here send no velocity); ``blocked(linear)`` says whether the world
 lets a motion at ``linear`` m/s through: a wedged robot's forward motion is not.
 """
@@ -13,13 +14,14 @@ import threading
 import time
 
 import rospy
+import tf2_ros
 from geometry_msgs.msg import Twist
 from nav_msgs.msg import Odometry
 from sensor_msgs.msg import LaserScan
 
 from flask_move_server.core.geometry import Pose2D, along_arc
 from flask_move_server.maps import mapfile
-from flask_move_server.ros.convert import write_pose
+from flask_move_server.ros.convert import transform_message, write_pose
 from flask_move_server.sim.laser import Laser
 from tests.conftest import ROOT
 
@@ -32,9 +34,10 @@ DEADMAN = 0.5  # s a cmd_vel holds
 class WedgedBase:
     """The robot at ``truth`` (Pose2D) on the demo flat, its ``odom``/``scan``/``cmd_vel`` under ``name``."""
 
-    def __init__(self, name, truth, frame, blocked=lambda linear: linear > 0):
+    def __init__(self, name, truth, frame, map_frame, blocked=lambda linear: linear > 0):
         self.truth, self.odometry = truth, Pose2D(0.0, 0.0, truth.yaw)
-        self.frame, self.blocked = frame, blocked
+        self.frame, self.map_frame, self.blocked = frame, map_frame, blocked
+        self._tf = tf2_ros.TransformBroadcaster()
         self.pushing = 0.0  # m/s forward "move_base" commands while a goal is under way
         self.commands = []  # every cmd_vel heard: (linear, angular)
         self._command, self._command_at = (0.0, 0.0), 0.0
@@ -74,6 +77,7 @@ class WedgedBase:
                 odometry, truth = self.odometry, self.truth
             stamp = rospy.Time.now()
             self._odom.publish(_odometry(odometry, linear, angular, stamp))
+            self._tf.sendTransform(transform_message(truth, stamp, self.map_frame, self.frame))
             tick += 1
             if tick % SCAN_EVERY == 0:
                 self._scan.publish(self._scan_of(truth, stamp))

@@ -13,6 +13,7 @@ import time
 import pytest
 
 from flask_move_server import config
+from flask_move_server.core.errors import NotStuck, Pressed
 from flask_move_server.core.geometry import Goal, Pose2D
 from flask_move_server.recovery import footprint
 from flask_move_server.recovery.recovery import Recovery
@@ -39,7 +40,7 @@ class Relocalize:
 def stuck(ready_robot, robot_config, bus, unique_name, request):
     """The robot with its recovery and watch, and a WedgedBase at the test's ``truth``."""
     truth = getattr(request, "param", OPEN_FLOOR)
-    world = WedgedBase(unique_name, truth, robot_config.ros.frames.base_link)
+    world = WedgedBase(unique_name, truth, robot_config.ros.frames.base_link, robot_config.ros.frames.map)
     relocalize = Relocalize()
     recovery = Recovery(ready_robot, config.StuckConfig(), FOOTPRINT, relocalize=relocalize, events=bus)
     ready_robot.recovery = recovery
@@ -123,14 +124,51 @@ def test_pushed_by_the_joystick_it_says_so_stops_and_is_free_once_it_moves(stuck
     status = robot.status()
     assert status["stuck"]["state"] == "stuck" and status["stuck"]["message"].startswith("Pressed against something")
     assert not status["teleop"]["active"]  # it stopped commanding the motors against the wall
-    assert world.backed_out() == []  # the owner drives: no back-out
+    assert world.backed_out() == [] and status["stuck"]["waiting"]  # the owner drives: no back-out by itself
+    with pytest.raises(Pressed) as refused:  # pushing on only slides its position into the wall
+        robot.teleop(0.2, 0.3)
+    assert "pressed against something ahead" in str(refused.value)
+    robot.teleop(0.0, 0.5)  # turning is not refused, nor driving back
     world.blocked = lambda linear: False
     for _ in range(30):
         robot.teleop(-0.2, 0.0)
         if stuck_state(robot) == "free":
             break
         time.sleep(0.1)
-    assert stuck_state(robot) == "free"
+    assert stuck_state(robot) == "free"  # the laser saw it move: free again
+
+
+def test_asked_to_back_out_it_backs_out_slowly_and_waits_and_a_free_robot_says_it_is_not_stuck(stuck):
+    robot, world, recovery, relocalize, told = stuck
+    with pytest.raises(NotStuck):
+        robot.back_out()
+    for _ in range(40):
+        if stuck_state(robot) == "stuck":
+            break
+        robot.teleop(0.2, 0.0)
+        time.sleep(0.1)
+    assert robot.back_out()["state"] in ("stuck", "backing_out")
+    wait_for(lambda: stuck_state(robot) == "free", timeout=15, message="backed out")
+    assert told == ["stuck", "backing_out", "free"]
+    assert OPEN_FLOOR.x - world.truth.x == pytest.approx(0.3, abs=0.08) and relocalize.calls == 1
+    assert recovery.status()["freed"] == 1 and not robot.status()["teleop"]["active"]
+
+
+def test_the_joystick_ends_a_back_out_the_owner_asked_for(stuck):
+    robot, world, recovery, _, _ = stuck
+    for _ in range(40):
+        if stuck_state(robot) == "stuck":
+            break
+        robot.teleop(0.2, 0.0)
+        time.sleep(0.1)
+    robot.back_out()
+    wait_for(lambda: stuck_state(robot) == "backing_out", timeout=5, message="backing out")
+    robot.teleop(0.0, 0.5)  # the owner turns it instead
+    assert stuck_state(robot) == "free" and robot.status()["teleop"]["by"] == "owner"
+    time.sleep(0.2)  # a command of the back-out's on its way now lands
+    backed = len(world.backed_out())
+    time.sleep(0.5)
+    assert len(world.backed_out()) == backed  # no more of them
 
 
 @pytest.mark.parametrize("stuck", [BACK_TO_THE_WALL], indirect=True)

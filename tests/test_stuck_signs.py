@@ -14,7 +14,7 @@ import pytest
 
 from flask_move_server.core.geometry import Pose2D, compose, inverse
 from flask_move_server.maps import mapfile
-from flask_move_server.recovery import footprint, words
+from flask_move_server.recovery import footprint, relocate, words
 from flask_move_server.recovery.back_out import BLOCKED, DONE, NO_ROOM, TIMEOUT, BackOut, ended
 from flask_move_server.recovery.detector import MotionWatch, QuickAborts
 from flask_move_server.recovery.scan_motion import MOVED, STILL, end_points, verdict
@@ -158,3 +158,21 @@ def test_the_words_say_where_in_the_owner_s_names_first():
     assert words.place(None, places) is None
     assert words.backing_out("near sofa", 0.3).startswith("Stuck near sofa: backing out 30 cm")
     assert words.no_room("near sofa").startswith("Stuck near sofa: drive it out with the joystick")
+
+
+# putting the position back --------------------------------------------------------------------------
+
+def test_a_position_slid_with_the_odometry_is_put_back_where_the_laser_fits_the_map():
+    truth = Pose2D(0.2, 2.3, 1.55)  # pressed on the office door's jamb
+    slip = Pose2D(0.3, 0.0, 0.0)  # the odometry counted 0.3 m more straight on
+    for took in (1.0, 0.6, 1.3):  # AMCL took all of it, some of it, more (the real one: 0.36 of 0.3 m)
+        estimate = compose(truth, Pose2D(slip.x * took, 0.0, 0.0))
+        pose, before, after = relocate.put_back(GRID, estimate, slip, points_at(truth))
+        assert math.hypot(pose.x - truth.x, pose.y - truth.y) < 0.04, (took, pose)
+        assert after >= 0.9 > before + relocate.BETTER
+
+
+def test_a_position_that_did_not_slide_is_left_alone():
+    truth = Pose2D(0.2, 2.3, 1.55)
+    assert relocate.put_back(GRID, truth, Pose2D(0.3, 0.0, 0.0), points_at(truth)) is None
+    assert not relocate.slipped(Pose2D(0.03, 0.0, 0.02)) and relocate.slipped(Pose2D(0.0, 0.0, 0.2))

@@ -84,7 +84,7 @@ class ServerParts:
 
         polygon = footprint.read(cfg.sim.navigation_config or default_navigation_config())
         recovery = Recovery(robot, cfg.stuck, polygon, places=store.all, grid=grid, relocalize=NoMotionUpdate(),
-                            events=self.events)
+                            events=self.events, set_pose=self.initial_pose.publish)
         stack.callback(recovery.close)
         watch = StuckWatch(recovery, self._node, robot, cfg.diagnostics.scan_topic, cfg.drive.odom_topic,
                            cfg.ros.frames.base_link)
@@ -242,7 +242,7 @@ class ServerParts:
         from flask_move_server.ros.initial_pose import InitialPose
 
         cfg = self.config
-        initial_pose = InitialPose(cfg.modes.initial_pose_topic, cfg.ros.frames.map, self._node)
+        initial_pose = self.initial_pose = InitialPose(cfg.modes.initial_pose_topic, cfg.ros.frames.map, self._node)
         stack.callback(initial_pose.close)
         backend = self._stack_backend()
         if backend is None:

@@ -125,6 +125,18 @@ class RunConflict(MoveServerError, RuntimeError):
     code = "run_conflict"
 
 
+class NotStuck(MoveServerError, RuntimeError):
+    """A back-out asked of a robot that is not stuck (or backs out already)."""
+
+    code = "not_stuck"
+
+
+class Pressed(MoveServerError, RuntimeError):
+    """A joystick command that would push the robot on against what it is pressed on."""
+
+    code = "pressed"
+
+
 class ExploreConflict(MoveServerError, RuntimeError):
     """No exploration can start or go on now: one is under way, or a run is active."""
 

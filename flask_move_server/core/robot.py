@@ -7,7 +7,7 @@ both and zeroes the velocity, the teleop deadman halts the motors at once, the
 e-stop latch stops everything and refuses goals and teleop until released).
 """
 
-from flask_move_server.core.errors import NavigationFailed, NavigationUnavailable, ShuttingDown
+from flask_move_server.core.errors import NavigationFailed, NavigationUnavailable, NotStuck, ShuttingDown
 from flask_move_server.drive.estop import EStop
 
 _SHUTTING_DOWN = "The server is shutting down: the robot was stopped. Send the command again once it is back."
@@ -162,7 +162,11 @@ class Robot:
     def teleop(self, linear, angular):
         """Drive at the given velocity for the deadman time; cancels a goal under way."""
         self._refuse_motion("teleop is")
+        if self.recovery is not None:
+            self.recovery.check_push(linear)
         self._end_run("Driven by joystick (POST /teleop).")
+        if self.recovery is not None:
+            self.recovery.owner_drives()
         self.drive.rearm()  # a deliberate command: motion after an e-stop release starts here
         result = self.teleop_control.command(linear, angular)
         if self.navigator.active:
@@ -211,6 +215,13 @@ class Robot:
                     "failed_parts": self.node.failed_parts},
             **self._simulated(),
         }
+
+    def back_out(self):
+        """Back out of where the robot said it is stuck (it waits for its owner): NotStuck when it is not."""
+        if self.recovery is None:
+            raise NotStuck("The stuck watch is off (stuck.enabled: false): drive the robot with the joystick.")
+        self.recovery.back_out()
+        return self.recovery.status()
 
     def stuck_status(self):
         """``/status`` ``stuck`` (recovery/recovery.py), or None when the stuck watch is off."""

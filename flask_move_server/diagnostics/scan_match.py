@@ -26,6 +26,19 @@ def match_share(grid, pose, laser, scan):
     usable = np.isfinite(ranges) & (ranges > scan.range_min) & (ranges < scan.range_max)
     ranges, angles = ranges[usable], angles[usable]
     lx, ly = laser.x + ranges * np.cos(laser.yaw + angles), laser.y + ranges * np.sin(laser.yaw + angles)
+    return _share(grid, pose, lx, ly)
+
+
+def points_share(grid, pose, points):
+    """As :func:`match_share`, for end points given in the robot's frame (``[(x, y), ...]``, base_link)."""
+    import numpy as np
+
+    xy = np.asarray(points, dtype=float).reshape(-1, 2)
+    return _share(grid, pose, xy[:, 0], xy[:, 1])
+
+
+def _share(grid, pose, lx, ly):
+    """``(share, points)`` of end points (``lx``, ``ly`` in base_link, numpy arrays) on a wall at ``pose``."""
     c, s = math.cos(pose.yaw), math.sin(pose.yaw)
     mx, my = pose.x + c * lx - s * ly, pose.y + s * lx + c * ly
     col, row = _cells(grid, mx, my)

@@ -11,12 +11,14 @@
 
 import math
 
-from flask_move_server.core.geometry import compose, inverse
+from flask_move_server.core.geometry import Pose2D, compose, inverse
 from flask_move_server.recovery.scan_motion import MOVED, STILL, travelled, verdict
 
 BLOCKED_AFTER = 2  # comparisons in a row saying "still" while the odometry moved
 QUICK_ABORTS = 2  # quick aborts in a row without moving
+SLIP_FORGOTTEN = 10  # comparisons in a row seeing the robot move, after which a slip is taken as made good
 MOVED_AT_LEAST = 0.1  # m: a goal during which the robot came no farther did not move it
+IDENTITY = Pose2D(0.0, 0.0, 0.0)
 STANDING = (0.005, 0.01)  # m, rad of odometry: the robot stands; the newest scan is the best to compare with
 
 
@@ -28,10 +30,17 @@ class MotionWatch:
         self._reference = None  # (end points, odometry Pose2D)
         self._still = 0
         self.last = None  # the last comparison's verdict (STILL, MOVED or None)
+        self.slip = IDENTITY  # the odometry the laser did not see, until put back or driven off
+        self._moved = 0  # comparisons in a row that saw the robot move
 
     def reset(self):
-        """Forget what was seen (a new goal, a back-out begins): the next scan is the new reference."""
+        """Forget what was seen (a new goal, a back-out begins): the next scan is the new reference.
+        The slip is kept: the localization still carries it."""
         self._reference, self._still, self.last = None, 0, None
+
+    def forget_slip(self):
+        """The localization was put back (recovery.py): no slip is owed any more."""
+        self.slip = IDENTITY
 
     def scan(self, points, odometry):
         """One scan's end points (robot frame) with the odometry pose at it: True once the robot is blocked."""
@@ -48,8 +57,14 @@ class MotionWatch:
         self._reference = (points, odometry)
         if self.last == STILL:
             self._still += 1
+            self.slip = compose(self.slip, motion)
         elif self.last == MOVED:
             self._still = 0
+            self._moved += 1
+            if self._moved >= SLIP_FORGOTTEN:  # a metre or so driven well: AMCL's laser has caught up by now
+                self.slip = IDENTITY
+        if self.last == STILL:
+            self._moved = 0
         return self._still >= self.after
 
     @property

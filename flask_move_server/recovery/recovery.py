@@ -20,13 +20,15 @@ under way; the laser seeing the robot move again ends a ``stuck`` said without a
 """
 
 import logging
+import math
 import threading
 import time
 
+from flask_move_server.core.errors import MoveServerError, NotStuck, Pressed
 from flask_move_server.recovery import footprint as footprints
-from flask_move_server.recovery import words
+from flask_move_server.recovery import relocate, words
 from flask_move_server.recovery.back_out import DONE as BACKED_OUT
-from flask_move_server.recovery.back_out import PERIOD, BackOut, ended
+from flask_move_server.recovery.back_out import NO_ROOM, PERIOD, BackOut, ended
 from flask_move_server.recovery.detector import QUICK_ABORTS, QuickAborts
 
 log = logging.getLogger(__name__)
@@ -36,6 +38,9 @@ SETTLE = 0.5  # s for the robot to come to rest (and a fresh scan to come) befor
 TOUCH = 0.03  # m: a laser end point this near the footprint touches it
 MIN_ROOM = 0.05  # m: less room behind than this is none
 FRESH = 1.0  # s: an older scan says nothing of the robot now
+NOT_STUCK = "The robot is not stuck: there is nothing to back out of."
+BUSY = "The robot is {} already: wait for it, or press Stop."
+SURE = (0.05, 0.05)  # m, rad: the spread of a position put back by the laser (RViz's click says 0.5 m)
 UNHEARD = 1.0  # s: a goal that ended this soon, before any odometry was heard, did not move the robot
 LOOK = 3.0  # s a goal aborted at once is held for a fresh scan, to tell a stuck robot from an unreachable goal
 SENT_KEPT = 8  # goals whose send time is kept, for the quick-abort count
@@ -45,10 +50,11 @@ class Recovery:
     """The robot's stuck state and its way out (``/status`` ``stuck``; ``stuck`` events)."""
 
     def __init__(self, robot, config, footprint, places=None, grid=None, relocalize=None, events=None,
-                 clock=time.monotonic):
+                 set_pose=None, clock=time.monotonic):
         """``robot``: the facade; ``config``: config.StuckConfig; ``footprint``: move_base's padded polygon;
         ``places()``: the active map's waypoints as (name, x, y); ``grid()``: the map in use (a Grid) or None;
-        ``relocalize()``: asks localization to look again; ``events``: the bus, for ``stuck`` events."""
+        ``relocalize()``: asks localization to look again; ``events``: the bus, for ``stuck`` events;
+        ``set_pose(pose, sigma)``: tells localization where the robot is (``/initialpose``)."""
         self._robot = robot
         self._nav = robot.navigator
         self.config = config
@@ -56,6 +62,7 @@ class Recovery:
         self._places = places or (lambda: [])
         self._grid = grid or (lambda: None)
         self._relocalize = relocalize or (lambda: None)
+        self._set_pose = set_pose
         self._events = events
         self._clock = clock
         self._lock = threading.Lock()
@@ -68,6 +75,8 @@ class Recovery:
         self._quick = QuickAborts(config.quick_abort)
         self._blocked_again = threading.Event()
         self._worker = None
+        self._asked = False  # a back-out the owner asked for is under way (POST /stuck/back_out)
+        self._pressed = None  # +1 / -1: the way the joystick pushed the robot against something
         self.sensing = None  # the watch (watch.py): scans and odometry, set by it
         self._nav.judge_aborts(self._judge)
         self._nav.when_ended(self._goal_ended)
@@ -75,21 +84,25 @@ class Recovery:
     # what the server shows ---------------------------------------------------------------
 
     def status(self):
-        """``/status`` ``stuck``: ``{"state", "message", "since", "place", "count", "freed"}``."""
+        """``/status`` ``stuck``: ``{"state", "message", "since", "place", "waiting", "count", "freed"}``."""
         with self._lock:
             return self._status()
 
     def _status(self):
+        """Lock held. ``waiting``: stuck with no goal held for it, so it waits for its owner (``back_out``)."""
         return {"state": self._state, "message": self._message, "since": self._since, "place": self._where,
+                "waiting": self._state == STUCK and not self._nav.holding(self._seq),
                 "count": self.count, "freed": self.freed}
 
-    def _change(self, state, message=None, where=None, seq=None, when=None, freed=False):
+    def _change(self, state, message=None, where=None, seq=None, when=None, freed=False, pressed=None):
         """A new state, told as a ``stuck`` event (outside the state's lock: a listener may ask for the
-        status); only when ``when()`` holds, if given (under the lock). True when changed."""
+        status); only when ``when()`` holds, if given (under the lock). True when changed. ``pressed``: the
+        way (+1 ahead, -1 behind) the joystick pushed it against something, kept until the state changes."""
         with self._telling:
             with self._lock:
                 if when is not None and not when():
                     return False
+                self._pressed = pressed
                 if state != FREE and self._state == FREE:
                     self.count += 1
                     self._since = time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())
@@ -103,24 +116,26 @@ class Recovery:
         return True
 
     def _said_without_goal(self):
-        """Lock held: a ``stuck`` is said and no goal is held for it (pressed by the joystick, or given up)."""
-        return self._state == STUCK and not self._nav.holding(self._seq)
+        """Lock held: a ``stuck`` is said and no goal is held for it (pressed by the joystick, or given up), or
+        the owner's asked back-out is under way: what a new command ends."""
+        return ((self._state == STUCK and not self._nav.holding(self._seq))
+                or (self._asked and self._state == BACKING_OUT))
 
     # the signs -------------------------------------------------------------------------------
 
     def goal_sent(self, seq):
         """A new goal (``Robot._send``): a ``stuck`` said without a goal is over; its send time is kept."""
         with self._lock:
-            self._sent[seq] = self._clock()
+            self._sent[seq] = (self._clock(), self._robot.pose.now())
             while len(self._sent) > SENT_KEPT:
                 del self._sent[min(self._sent)]
-            said = self._state == STUCK
+            said = self._state != FREE
         if said:
             self._change(FREE, when=self._said_without_goal)
 
     def commanded(self):
         """``/stop`` (or the e-stop): a ``stuck`` said is over; a back-out under way ends (its goal was canceled)."""
-        self._change(FREE, when=lambda: self._state == STUCK)
+        self._change(FREE, when=self._said_without_goal)
 
     def blocked(self):
         """The watch: the odometry says the robot moves, the laser says it does not."""
@@ -137,13 +152,16 @@ class Recovery:
         if not self._robot.teleop_control.status()["active"]:
             return  # nobody drives it now (a goal that just ended): nothing to say
         self._robot.teleop_control.stop()  # the motors strain against a wall: stop commanding
-        if self._change(STUCK, words.pressed(where), where, when=lambda: self._state == FREE):
+        way = self.sensing.came() if self.sensing is not None else None
+        if self._change(STUCK, words.pressed(where), where, when=lambda: self._state == FREE, pressed=way):
             log.warning("stuck %s: pressed against something while driven by joystick", where)
+            self._later(self._put_back, SETTLE)
 
     def moving(self):
         """The watch: the laser saw the robot move as its odometry says: a ``stuck`` without a goal is over."""
-        if self._state == STUCK:
-            self._change(FREE, when=self._said_without_goal)
+        if self._state == STUCK and self._change(FREE, when=lambda: self._state == STUCK and not self._asked
+                                                 and not self._nav.holding(self._seq)):
+            self._later(self._put_back, 0.0)  # what the joystick pushed on after it was said
 
     def _judge(self, seq, said):
         """The navigator, as move_base aborts goal ``seq`` soon after it was sent, the robot not moving: True
@@ -155,9 +173,11 @@ class Recovery:
             return False
         with self._lock:
             sent = self._sent.get(seq)
-        seconds = None if sent is None else self._clock() - sent
-        moved = self.sensing.travel_since(sent) if self.sensing is not None and sent is not None else None
-        if moved is None and seconds is not None and seconds < UNHEARD:
+        if sent is None:  # aborted before Robot._send told us it was sent: within a millisecond or two
+            seconds, moved = 0.0, 0.0
+        else:
+            seconds, moved = self._clock() - sent[0], self._travel_since(*sent)
+        if moved is None and seconds < UNHEARD:
             moved = 0.0  # ended before the odometry was heard: too soon to have gone anywhere
         self._quick.ended("aborted", seconds, moved)
         if self._quick.in_a_row == 0:
@@ -188,6 +208,14 @@ class Recovery:
         self._said_stuck(seq, seconds, said, "the laser shows it touching something")
         if self._nav.hold(seq, words.cornered(where, False), cancel=False):
             self._stuck(seq, words.cornered(where, False), where)
+
+    def _travel_since(self, monotonic, ros_time):
+        """Metres the robot came since it was at (``monotonic``, ``ros_time``): the localized pose then and now
+        (tf keeps 10 s), else the odometry the watch heard; None when neither knows."""
+        then, now = self._robot.pose.at(ros_time), self._robot.pose.current()
+        if then is not None and now is not None:
+            return math.hypot(now.pose.x - then.x, now.pose.y - then.y)
+        return self.sensing.travel_since(monotonic) if self.sensing is not None else None
 
     def _said_stuck(self, seq, seconds, said, why):
         log.warning("goal %d: aborted %.1f s after it was sent (%s), without moving, and %s: stuck", seq,
@@ -232,6 +260,7 @@ class Recovery:
             self._robot.teleop_control.end_command()
 
     def _try_back_out(self, seq, where):
+        """Goal ``seq`` got the robot stuck: back out, then send it again; or it ends ``stuck``."""
         tries = self._tries.get(seq, 0)
         if not self.config.back_out:
             return self._give_up(seq, words.no_way_out(where, words.back_out_off()))
@@ -239,20 +268,13 @@ class Recovery:
             return self._give_up(seq, words.no_way_out(where, words.tried(tries)))
         if self._closed.wait(SETTLE) or not self._nav.holding(seq):
             return self._owner_took_over(seq)
-        way = -(self.sensing.came() or 1)  # back the way it came: it drove forward into it, most likely
-        room = self._room(self.config.back_out_distance, way)
-        if room is None or room < MIN_ROOM:
-            return self._give_up(seq, words.no_room(where))
-        distance = min(self.config.back_out_distance, room)
-        message = words.backing_out(where, distance, way)
-        self._change(BACKING_OUT, message, where, seq)
-        self._nav.say(seq, message)
-        outcome = self._drive_back(seq, distance, way)
-        self._robot.teleop_control.stop()
+        self._put_back()
+        outcome = self._back_out(seq, where)
         if outcome is None:
             return self._owner_took_over(seq)
         if outcome != BACKED_OUT:
-            return self._give_up(seq, words.no_way_out(where, words.got_nowhere()))
+            return self._give_up(seq, words.no_room(where) if outcome == NO_ROOM
+                                 else words.no_way_out(where, words.got_nowhere()))
         self._relocalize()
         self._tries[seq] = tries + 1
         self._quick.reset()
@@ -262,6 +284,69 @@ class Recovery:
         else:
             self._owner_took_over(seq)
 
+    def _back_out(self, seq, where):
+        """Back out the way the robot came, as far as the laser shows room: the outcome (back_out.py), or None
+        when someone else took over (``seq``: the goal held for it, or None: the owner asked for it)."""
+        way = -(self.sensing.came() or 1)  # back the way it came: it drove forward into it, most likely
+        room = self._room(self.config.back_out_distance, way)
+        if room is None or room < MIN_ROOM:
+            return NO_ROOM if self._ours(seq) else None
+        distance = min(self.config.back_out_distance, room)
+        message = words.backing_out(where, distance, way, again=seq is not None)
+        if not self._change(BACKING_OUT, message, where, seq, when=lambda: self._ours(seq)):
+            return None
+        if seq is not None:
+            self._nav.say(seq, message)
+        outcome = self._drive_back(seq, distance, way)
+        self._robot.teleop_control.stop()
+        return outcome
+
+    def back_out(self):
+        """The owner asks a robot that said it is stuck, and waits, to back out (``POST /stuck/back_out``).
+
+        NotStuck when it is free, or backing out already; EStopLatched while the e-stop is on.
+        """
+        self._robot.refuse_motion("backing out is")
+        with self._lock:
+            state, seq, where = self._state, self._seq, self._where
+            if state != STUCK or self._nav.holding(seq):
+                raise NotStuck(NOT_STUCK if state == FREE else BUSY.format(state.replace("_", " ")))
+            self._asked = True
+        self._later(lambda: self._asked_back_out(where), 0.0, "stuck-back-out")
+
+    def _asked_back_out(self, where):
+        try:
+            outcome = self._back_out(None, where)
+        finally:
+            self._asked = False
+            self._robot.teleop_control.end_command()
+        if outcome == BACKED_OUT:
+            self._relocalize()
+            self._change(FREE, freed=True, when=lambda: self._state == BACKING_OUT)
+        elif outcome is not None:
+            message = words.no_room(where) if outcome == NO_ROOM else words.no_way_out(where, words.got_nowhere())
+            self._change(STUCK, message, where, when=lambda: self._state in (STUCK, BACKING_OUT))
+
+    def _ours(self, seq):
+        """True while a back-out may go on: goal ``seq`` still held, or (None) the owner's asked one not taken over."""
+        if seq is not None:
+            return self._nav.holding(seq)
+        return self._asked and self._state in (STUCK, BACKING_OUT)
+
+    def check_push(self, linear):
+        """``Robot.teleop``: Pressed when ``linear`` m/s would push the robot on against what it is pressed on
+        (the laser saw it not move): it only slides its position into the wall and strains the motors."""
+        with self._lock:
+            way = self._pressed if self._state == STUCK else None
+        if way is not None and linear * way > 0:
+            raise Pressed(words.pushed(self._where, way))
+
+    def owner_drives(self):
+        """The joystick (``Robot.teleop``): a back-out the owner asked for ends; they drive now."""
+        if self._asked:
+            self._change(FREE, when=lambda: self._asked and self._state == BACKING_OUT)
+            self._asked = False
+
     def _drive_back(self, seq, distance, way):
         """Back out up to ``distance`` (``way`` -1 backwards, +1 forwards): the outcome (back_out.py), or None
         when someone else took over."""
@@ -270,17 +355,53 @@ class Recovery:
         self.sensing.restart_motion()
         origin = self.sensing.odometry()
         while not self._closed.is_set():
-            if not self._nav.holding(seq) or self._robot.estop.latched:
+            if not self._ours(seq) or self._robot.estop.latched:
                 return None
             backed = self.sensing.travel_from(origin) or 0.0
             step = back_out.next(self._clock() - start, backed, self._room(distance - backed, way),
                                  self._blocked_again.is_set())
             if ended(step):
-                log.info("goal %d: backing out ended %s after %.2f m", seq, step, backed)
+                log.info("%s: backing out ended %s after %.2f m", "goal {}".format(seq) if seq else "asked", step,
+                         backed)
                 return step
             self._robot.teleop_control.command(-step * way, 0.0, by="back_out")
             self._closed.wait(PERIOD)
         return None
+
+    def _put_back(self):
+        """Localization slid with the odometry the laser did not see: tell it where the laser fits the map
+        (relocate.py), when that is clearly better than where it believes the robot is."""
+        slip = self.sensing.slip() if self.sensing is not None else None
+        if self._set_pose is None or slip is None or not relocate.slipped(slip):
+            return
+        grid, reading, points = self._grid(), self._robot.pose.current(), self.sensing.points(FRESH)
+        if grid is None or reading is None or not points:
+            return
+        found = relocate.put_back(grid, reading.pose, slip, points)
+        if found is None:
+            return
+        pose, before, after = found
+        try:
+            self._set_pose(pose, SURE)
+        except MoveServerError as exc:
+            log.warning("could not put the robot's position back: %s", exc)
+            return
+        self.sensing.forget_slip()
+        log.info("the robot's position slid %.2f m with its odometry: put back to %s (the laser on the map's walls "
+                 "%.0f %% there, %.0f %% before)", math.hypot(slip.x, slip.y), _rounded(pose), after * 100,
+                 before * 100)
+
+    def _later(self, job, delay, name="stuck-put-back"):
+        """``job()`` in a thread of its own after ``delay`` s (not in a ROS callback's thread, nor a request's)."""
+        def run():
+            if not self._closed.wait(delay):
+                try:
+                    job()
+                except Exception:  # the stuck state stands without it
+                    log.exception("%s failed", name)
+        thread = threading.Thread(target=run, name=name, daemon=True)
+        self._worker = thread if name == "stuck-back-out" else self._worker
+        thread.start()
 
     def _room(self, reach, way):
         """Metres clear for the footprint ``way`` (-1 behind, +1 ahead), at most ``reach``; None: no fresh scan."""
@@ -306,3 +427,7 @@ class Recovery:
         worker = self._worker
         if worker is not None and worker is not threading.current_thread():
             worker.join(2.0)
+
+
+def _rounded(pose):
+    return "x {:.2f}, y {:.2f}, yaw {:.2f}".format(pose.x, pose.y, pose.yaw)

@@ -181,6 +181,15 @@ class StuckWatch:
             return 0.0  # no sample since: the odometry did not move
         return travel(first, last)
 
+    def slip(self):
+        """The odometry the laser did not see (Pose2D, in the robot's frame), since it last saw the robot move."""
+        with self._lock:
+            return self._motion.slip
+
+    def forget_slip(self):
+        with self._lock:
+            self._motion.forget_slip()
+
     def restart_motion(self):
         """Compare from the next scan on (a back-out begins)."""
         with self._lock:

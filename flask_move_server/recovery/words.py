@@ -37,23 +37,30 @@ def cornered(where, on_the_map):
     return "Stuck{}: {}.".format(_where(where), why)
 
 
+def pushed(where, way):
+    return ("The robot is pressed against something {}{}: drive it the other way or turn it, or let it back out "
+            "by itself.".format("ahead" if way > 0 else "behind", _where(where)))
+
+
 def looking():
     return "Its goals fail at once: looking whether it is stuck."
 
 
 def pressed(where):
-    return ("Pressed against something{}: drive it back with the joystick. Its wheels turned but the laser saw "
-            "it standing still.".format(_where(where)))
+    return ("Pressed against something{}: let it back out by itself, or drive it back with the joystick. Its "
+            "wheels turned but the laser saw it standing still.".format(_where(where)))
 
 
-def backing_out(where, distance, way=-1):
-    """``way`` -1: backwards (the robot came forward into it); +1: forwards (it came backwards)."""
-    return "Stuck{}: {} {:.0f} cm slowly, then trying again.".format(
-        _where(where), "backing out" if way < 0 else "pulling out forwards", distance * 100)
+def backing_out(where, distance, way=-1, again=True):
+    """``way`` -1: backwards (the robot came forward into it); +1: forwards (it came backwards); ``again``:
+    its goal is sent again after (else the owner asked, and it then waits)."""
+    return "Stuck{}: {} {:.0f} cm slowly{}.".format(
+        _where(where), "backing out" if way < 0 else "pulling out forwards", distance * 100,
+        ", then trying again" if again else "")
 
 
 def no_room(where):
-    return ("Stuck{}: drive it out with the joystick (or move it by hand), then send it again. The way behind "
+    return ("Stuck{}: drive it out with the joystick (or move it by hand), then send it again. The way it came "
             "is not clear, so it did not back out.".format(_where(where)))
 
 

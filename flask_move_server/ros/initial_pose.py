@@ -23,14 +23,15 @@ XY_VARIANCE = 0.5 * 0.5
 YAW_VARIANCE = (math.pi / 12.0) ** 2  # 0.0685
 
 
-def estimate(pose, frame, stamp):
-    """The PoseWithCovarianceStamped RViz's 2D Pose Estimate would send for ``pose`` in ``frame``."""
+def estimate(pose, frame, stamp, xy_variance=XY_VARIANCE, yaw_variance=YAW_VARIANCE):
+    """The PoseWithCovarianceStamped RViz's 2D Pose Estimate would send for ``pose`` in ``frame`` (its
+    covariance, unless given: the stuck watch, which knows the pose better, gives a tighter one)."""
     msg = PoseWithCovarianceStamped()
     msg.header.frame_id, msg.header.stamp = frame, stamp
     write_pose(msg.pose.pose, pose)
     covariance = [0.0] * 36
-    covariance[0] = covariance[7] = XY_VARIANCE  # x, y
-    covariance[35] = YAW_VARIANCE  # rotation about z
+    covariance[0] = covariance[7] = xy_variance  # x, y
+    covariance[35] = yaw_variance  # rotation about z
     msg.pose.covariance = covariance
     return msg
 
@@ -51,16 +52,19 @@ class InitialPose:
     def _setup(self):
         self._pub = rospy.Publisher(self._topic, PoseWithCovarianceStamped, queue_size=1)
 
-    def publish(self, pose):
-        """Publish ``pose`` as the robot's estimate; returns how many subscribers heard it."""
+    def publish(self, pose, sigma=None):
+        """Publish ``pose`` as the robot's estimate; returns how many subscribers heard it. ``sigma``:
+        ``(m, rad)`` standard deviations, for an estimate surer than a click in RViz; published at once
+        then, only to a localization already listening (none while mapping: nothing to wait for)."""
         pub = self._pub
         if pub is None or not self._node.connected:
             raise RosUnavailable("ROS is not reachable at {}: cannot publish the robot's pose on {}.".format(
                 self._node.master_uri, self._topic))
-        deadline = time.monotonic() + self.SUBSCRIBER_WAIT
+        deadline = time.monotonic() + (0.0 if sigma else self.SUBSCRIBER_WAIT)
         while pub.get_num_connections() == 0 and time.monotonic() < deadline:
             time.sleep(self.POLL)
-        pub.publish(estimate(pose, self._frame, rospy.Time.now()))
+        variances = (sigma[0] ** 2, sigma[1] ** 2) if sigma else (XY_VARIANCE, YAW_VARIANCE)
+        pub.publish(estimate(pose, self._frame, rospy.Time.now(), *variances))
         return pub.get_num_connections()
 
     def close(self):

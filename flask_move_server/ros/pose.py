@@ -77,6 +77,20 @@ class PoseTracker:
             )
         return reading.pose
 
+    def now(self):
+        """ROS time now (s): what :meth:`at` takes."""
+        return rospy.get_time()
+
+    def at(self, stamp):
+        """The pose (Pose2D, map frame) at ROS time ``stamp`` from tf's history (10 s kept), or None."""
+        if self._buffer is None:
+            return None
+        try:
+            t = self._buffer.lookup_transform(self._frames.map, self._frames.base_link, rospy.Time.from_sec(stamp))
+        except TF_ERRORS:
+            return None
+        return pose_from_transform(t.transform)
+
     @property
     def buffer(self):
         """The tf buffer (None until set up), for other lookups in the same tree."""

@@ -30,6 +30,8 @@ STATUS = (
     (errors.WaypointExists, 409),
     (errors.WaypointInUse, 409),
     (errors.RunConflict, 409),
+    (errors.NotStuck, 409),
+    (errors.Pressed, 409),
     (errors.ExploreConflict, 409),
     (errors.NoPose, 409),
     (errors.WaypointsLocked, 503),

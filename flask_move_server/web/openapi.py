@@ -49,6 +49,9 @@ def build(config):
         "/estop": {"post": _estop("Latch the e-stop: stop everything, refuse goals and teleop", "engaged",
                                   body=False)},
         "/estop/release": {"post": _estop("Release the e-stop (moves nothing)", "released", body=True)},
+        "/stuck/back_out": {"post": _operation(
+            "A robot that said it is stuck and waits for its owner backs out by itself (docs/stuck.md)", NO_FIELDS,
+            {202: _ok({"stuck": _ref("Stuck")})}, errors=(409,), body_optional=True)},
         "/waypoints": {"get": _operation("List the waypoints", None, {200: _json(_object(
             {"waypoints": {"type": "array", "items": _ref("Waypoint")}}))})},
         "/waypoints/{name}": _waypoint_item(),

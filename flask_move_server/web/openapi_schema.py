@@ -16,7 +16,7 @@ ERROR_CODES = {
     405: "method_not_allowed: the path takes other methods (the Allow header lists them)",
     409: "navigation_failed (with state), no_pose, command_late, estop_latched, estop_button_pressed, waypoints_file, "
          "wrong_mode, map_exists, map_in_use, map_configured, mode_switching, modes_off, waypoint_in_use, "
-         "run_conflict, explore_conflict",
+         "run_conflict, explore_conflict, not_stuck, pressed",
     413: "body_too_large: the body is over server.max_body_bytes",
     503: "ros_unavailable, move_base_unavailable, drive_error, shutting_down, waypoints_locked, map_file, "
          "no_map_received, stack_failed, too_many_streams",
@@ -69,9 +69,11 @@ def _components(max_body_bytes):
     stuck = _object({"state": {"enum": ["free", "stuck", "backing_out"]},
                      "message": {"type": "string", "nullable": True, "description": "where, what it does, what to do"},
                      "since": {"type": "string", "nullable": True}, "place": {"type": "string", "nullable": True},
+                     "waiting": {"type": "boolean", "description": "stuck, and waiting for its owner: "
+                                                                   "POST /stuck/back_out, or the joystick"},
                      "count": {"type": "integer", "description": "times it was stuck since the server started"},
                      "freed": {"type": "integer", "description": "times it backed out by itself and went on"}},
-                    ["state", "message", "since", "place", "count", "freed"])
+                    ["state", "message", "since", "place", "waiting", "count", "freed"])
     return {
         "schemas": {"Error": error, "Pose": pose, "Waypoint": waypoint, "EStop": estop, "Battery": battery,
                     "Stuck": stuck},

@@ -306,7 +306,7 @@ initHome({sendGoal, map, report});
 initWhereabouts({call, setGesture});
 initRunStrip({call, move, map, onRuns: showPastRuns});
 initRoutes({call, move, isLive, map, setGesture});
-initStuck({openDrive: () => document.querySelector('#tabs button[data-tab="drive"]').click()});
+initStuck({move, openDrive: () => document.querySelector('#tabs button[data-tab="drive"]').click()});
 initExplore({setOff, stop: () => { joystick.release(); keys.release(); stopping.send(); }, report, map, hint: flashHint});
 setGesture("go");
 showConnection("connecting");

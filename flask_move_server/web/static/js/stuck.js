@@ -1,7 +1,8 @@
 // The robot says it is stuck (`stuck` in GET /status, and its `stuck` events), in its own words:
 // where, what it is doing about it, what to do. Backing out by itself: amber, nothing to press;
-// waiting for its owner: red, with a button that brings the joystick up. A phone shows two lines of
-// the words (they start with what matters); a tap shows them all.
+// waiting for its owner: red, with "Back out" (it backs out by itself, POST /stuck/back_out) and
+// "Joystick" (brings the joystick up). A phone shows two lines of the words (they start with what
+// matters); a tap shows them all.
 const $ = (id) => document.getElementById(id);
 
 /** Shows `/status`'s `stuck` ({state, message, place, ...}, or null): the banner while it is not free. */
@@ -13,11 +14,15 @@ export function showStuck(stuck) {
   banner.dataset.state = on ? stuck.state : "";
   document.body.dataset.stuck = on ? stuck.state : "";
   $("stuck-text").textContent = on ? stuck.message || "Stuck." : "";
-  $("stuck-drive").hidden = !on || stuck.state === "backing_out";
+  const waits = on && stuck.waiting === true;
+  $("stuck-drive").hidden = !waits;
+  $("stuck-back").hidden = !waits;
 }
 
-/** Wires the banner: a tap on the words shows them whole; "Joystick" opens the Drive tab. */
-export function initStuck({openDrive}) {
+/** Wires the banner: a tap on the words shows them whole; "Back out" asks the robot to back out by
+ *  itself; "Joystick" opens the Drive tab. */
+export function initStuck({move, openDrive}) {
   $("stuck-text").onclick = () => { $("stuck").dataset.open = $("stuck").dataset.open === "1" ? "0" : "1"; };
+  $("stuck-back").onclick = () => move("/stuck/back_out").catch(() => {});
   $("stuck-drive").onclick = openDrive;
 }

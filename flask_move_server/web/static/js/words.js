@@ -8,6 +8,8 @@ const WORDS = {
   no_answer: () => "The robot did not answer (weak Wi-Fi?). If the command reaches it late, the robot ignores it.",
   command_late: () => "The robot got this too late (the Wi-Fi stalled), so it did not act on it. Try again.",
   estop_latched: () => "The e-stop is on: press Release at the top first.",
+  pressed: () => "The robot is pressed against something that way: pull the stick back or turn, or press Back out.",
+  not_stuck: () => "The robot is not stuck any more (or it is backing out already).",
   estop_button_pressed: () => "The e-stop button on the robot is still pressed: twist it out, then Release.",
   wrong_mode: (e, what) => (e.message && withoutApi(e.message) === e.message) ? e.message : ({
     goal: "No map in use, so the robot cannot go anywhere: Maps → Use a map (or Start mapping).",
