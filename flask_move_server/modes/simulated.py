@@ -143,7 +143,7 @@ class SimulatedStack:
                                       publish_period=max(0.25, 1.0 / sim.speed_factor)))
         # One cell more than the body's radius: a wall's corner no beam has hit yet is missing from the SLAM
         # map, and a path drawn past it at the body's own radius scrapes the true corner and sticks there
-        # (a real move_base keeps off it: its inflation reaches 0.35 m and its local costmap sees the corner).
+        # (a real move_base keeps off it: its inflation reaches 0.6 m and its local costmap sees the corner).
         planner = GrowingMapPlanner(self.slam, sim.robot_radius + self.slam.resolution, sim.safety_margin)
         self._move_base.set_planner(planner)
         self._move_base.serve()
