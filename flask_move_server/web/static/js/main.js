@@ -18,6 +18,7 @@ import {initRunStrip, loadRuns, tellRun} from "./runstrip.js";
 import {initExplore, loadExploration, tellExploration} from "./explore.js";
 import {showBattery} from "./battery.js";
 import {initStuck, showStuck} from "./stuck.js";
+import {initLaserFit, laserFitMode} from "./laserfit.js";
 
 const $ = (id) => document.getElementById(id);
 const map = new MapView($("map"), {overlays: [$("gesture")]});
@@ -216,6 +217,7 @@ function enableControls() {
 /** A mode body to the where-is-the-robot banner and the stale note (the top bar shows it by itself). */
 function showModes(m) {
   showWhereabouts(m);
+  laserFitMode(m);
   showStaleNote();
 }
 
@@ -306,6 +308,7 @@ initHome({sendGoal, map, report});
 initWhereabouts({call, setGesture});
 initRunStrip({call, move, map, onRuns: showPastRuns});
 initRoutes({call, move, isLive, map, setGesture});
+initLaserFit({live, map, setGesture});
 initStuck({move, openDrive: () => document.querySelector('#tabs button[data-tab="drive"]').click()});
 initExplore({setOff, stop: () => { joystick.release(); keys.release(); stopping.send(); }, report, map, hint: flashHint});
 setGesture("go");

@@ -1,6 +1,8 @@
 // Drawing the map view: the map image (or a metre grid without one), the plan, the goal, the spot an
-// exploration heads for, the waypoints, a route (routedraw.js), the robot and the arrow being dragged. Pure drawing: what to draw
+// exploration heads for, the waypoints, a route (routedraw.js), the robot and the arrow being dragged
+// (setting the pose: with the laser as it would lie there, laserfit.js). Pure drawing: what to draw
 // is the view's state.
+import {movedTo, wallShare} from "./laserfit.js";
 import {drawRoute} from "./routedraw.js";
 
 export const TAP_PX = 10;  // a press that moves less than this is a tap, not a drag (no arrow drawn)
@@ -206,7 +208,35 @@ function drawDrag(v, ctx) {
   if (!g || g.kind !== "press" || v.mode === "look" || distance(g.start, g.now) < TAP_PX) return;
   const [x, y] = v.toWorld(g.start[0], g.start[1]);
   const yaw = Math.atan2(-(g.now[1] - g.start[1]), g.now[0] - g.start[0]);
+  if (v.mode === "pose") drawLaserAt(v, ctx, {x, y, yaw});
   drawArrow(v, ctx, x, y, yaw, v.mode === "pose" ? "#2e7d32" : "#c2185b", 24);
+}
+
+/** Setting the pose: the laser as it would lie with the robot there, and how much of it on the walls,
+ *  so the owner lines the dots up with the walls before letting go. */
+function drawLaserAt(v, ctx, pose) {
+  if (!v.robot || !v.scan.length || v.offline) return;
+  const points = movedTo(v.scan, v.robot, pose);
+  ctx.fillStyle = "#00c853";
+  ctx.beginPath();
+  for (const [x, y] of points) {
+    const [sx, sy] = v.toScreen(x, y);
+    ctx.rect(sx - 2.5, sy - 2.5, 5, 5);
+  }
+  ctx.fill();
+  const share = wallShare(v, points);
+  v.canvas.dataset.poseFit = share === null ? "" : share.toFixed(2);
+  if (share === null) return;
+  const [sx, sy] = v.toScreen(pose.x, pose.y);
+  const text = "laser on walls " + Math.round(share * 100) + " %";
+  ctx.font = "bold 14px sans-serif";
+  ctx.textAlign = "center";
+  ctx.textBaseline = "bottom";
+  ctx.lineWidth = 4;
+  ctx.strokeStyle = "#fff";
+  ctx.strokeText(text, sx, sy - 30);
+  ctx.fillStyle = share >= 0.7 ? "#1b5e20" : "#b00020";
+  ctx.fillText(text, sx, sy - 30);
 }
 
 function distance(a, b) { return Math.hypot(a[0] - b[0], a[1] - b[1]); }

@@ -1,8 +1,6 @@
-// The robot says it is stuck (`stuck` in GET /status, and its `stuck` events), in its own words:
-// where, what it is doing about it, what to do. Backing out by itself: amber, nothing to press;
-// waiting for its owner: red, with "Back out" (it backs out by itself, POST /stuck/back_out) and
-// "Joystick" (brings the joystick up). A phone shows two lines of the words (they start with what
-// matters); a tap shows them all.
+// The robot says it is stuck (`stuck` in /status and events), in its own words. Backing out by
+// itself: amber; waiting for its owner: red, with "Back out" (POST /stuck/back_out) and "Joystick"
+// (the Drive tab). A phone shows two lines of the words; a tap shows them all.
 const $ = (id) => document.getElementById(id);
 
 /** Shows `/status`'s `stuck` ({state, message, place, ...}, or null): the banner while it is not free. */
