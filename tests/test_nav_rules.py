@@ -623,3 +623,48 @@ def test_the_dwa_weights_shipped_before_followed_the_plan_onto_the_wall(tmp_path
     (folder / "dwa_local_planner.yaml").write_text(yaml.safe_dump(params))
     cost, gain = dwa_off_the_plan(str(folder))
     assert gain < cost
+
+
+# --- map -> odom dated ahead of a Pi's stall, in both modes (issue 33) --------------------------
+# With the real stack, mapping logged 107 "Extrapolation Error ... into the future" in 7 min and a first
+# goal aborted on "Received an empty transformed plan" (navigation: none). DWA turns the global plan into
+# the odom frame at the plan's stamp (base_local_planner goal_functions.cpp transformGlobalPlan), which
+# navfn stamps with the time it planned; tf cannot give map -> odom past its newest stamp. AMCL dates
+# map -> odom transform_tolerance ahead of the scan it comes from (amcl_node.cpp 1486), gmapping tf_delay
+# ahead of the time it publishes (slam_gmapping.cpp 803), every transform_publish_period (360).
+
+PI_STALL = 0.1  # s a busy Pi 4 holds a node's thread (gmapping's scan matching, a Python GC)
+
+
+def map_to_odom_lead(mode):
+    """(how far ahead map -> odom is dated, how often it is published) as roslaunch sets the SLAM / AMCL node."""
+    params = dump_params(*MODES[mode])
+    if mode == "mapping":
+        period = params.get("/slam_gmapping/transform_publish_period", 0.05)
+        return params.get("/slam_gmapping/tf_delay", period), period  # tf_delay defaults to the period
+    return params.get("/amcl/transform_tolerance", 0.1), None  # with each scan (the A1: ~0.18 s apart)
+
+
+def leads_a_stall(lead, period):
+    """A plan stamped now finds map -> odom at that time while the node publishing it is held up: dated at
+    least a stall (and, for gmapping, a period) ahead."""
+    return lead >= PI_STALL + (period or 0.0)
+
+
+@pytest.mark.parametrize("mode", ["mapping", "navigation"])
+def test_map_to_odom_is_dated_ahead_of_a_pi_s_stall(mode):
+    lead, period = map_to_odom_lead(mode)
+    assert leads_a_stall(lead, period), (mode, lead, period)
+
+
+def test_the_costmaps_wait_as_long_as_map_to_odom_is_dated_ahead():
+    """costmap_2d_ros.cpp getRobotPose: a robot pose older than transform_tolerance is a transform timeout
+    (16 while mapping, with the real stack): the tolerance covers the stall, and gmapping's lead as AMCL's."""
+    tolerance = read(SHIPPED, "costmap_common")["transform_tolerance"]
+    assert tolerance >= PI_STALL + 1.0 / drive_config().odom_rate
+    assert map_to_odom_lead("mapping")[0] <= tolerance and map_to_odom_lead("navigation")[0] <= tolerance
+
+
+def test_gmapping_as_shipped_before_dated_map_to_odom_only_a_period_ahead():
+    period = read(SHIPPED, "gmapping")["transform_publish_period"]
+    assert not leads_a_stall(period, period)  # no tf_delay: slam_gmapping.cpp takes the period
