@@ -80,3 +80,37 @@ def received_at(reader, predicate):
     """Read until ``predicate``; (the event, time.monotonic() when it was read)."""
     event = reader.until(predicate)
     return event, time.monotonic()
+
+
+class EventLog(EventReader):
+    """An ``/events`` stream read all along by a thread of its own, its events kept (``events``): for a test
+    that waits for something else meanwhile. A reader left unread takes nothing, and the server disconnects
+    one that takes nothing for ``server.channel_timeout`` (30 s), as it does a phone out of Wi-Fi range."""
+
+    def __init__(self, url, headers=None, timeout=10, kinds=None):
+        import threading
+
+        super().__init__(url, headers=headers, timeout=timeout, kinds=kinds)
+        self.events = []
+        self._thread = threading.Thread(target=self._read_all, name="event-log", daemon=True)
+        self._thread.start()
+
+    def _read_all(self):
+        try:
+            while True:
+                event = self.next()
+                if event is None:
+                    return
+                self.events.append(event)
+        except Exception:  # closed under the reader, or timed out: the events so far stand
+            self.ended = True
+
+    def until(self, predicate, timeout=30):
+        """The first event kept so far or within ``timeout`` s that ``predicate(kind, data)`` holds for."""
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            for event in list(self.events):
+                if predicate(*event):
+                    return event
+            time.sleep(0.05)
+        raise AssertionError("no such event within {} s".format(timeout))

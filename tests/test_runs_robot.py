@@ -97,3 +97,22 @@ def test_runs_are_kept_across_a_restart_and_an_active_one_is_interrupted(ready_r
     finally:
         again.close()
         first.close()
+
+
+def test_a_run_is_on_disk_when_its_start_is_answered(runs, move_base, monkeypatch, tmp_path):
+    """An acknowledged run survives a kill -9 right after: the answer waits for its write (a writer thread
+    starved on a loaded machine once lost one), here an SD card taking 0.3 s per write."""
+    import json
+
+    from flask_move_server.waypoints import locked_file
+
+    slow_write = locked_file.atomic_write
+
+    def sd_card(path, text):
+        time.sleep(0.3)
+        slow_write(path, text)
+    monkeypatch.setattr(locked_file, "atomic_write", sd_card)
+    move_base.delay = 5.0
+    run = runs.start(route("kitchen"))
+    on_disk = json.loads((tmp_path / "runs.json").read_text())
+    assert on_disk[0]["id"] == run["id"] and on_disk[0]["state"] == "running"

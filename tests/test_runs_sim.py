@@ -15,7 +15,7 @@ import pytest
 import requests
 
 from tests.conftest import stop_process, wait_for
-from tests.sse import EventReader
+from tests.sse import EventLog
 from tests.test_sim_e2e import SimServer
 
 ROOM = ("waypoints:\n  a: [1.0, 0.0, 0.0]\n  b: [1.5, 1.0, 1.57]\n  c: [0.5, 1.2, 3.14]\n"
@@ -81,7 +81,7 @@ def moved(sim, seconds):
 
 
 def test_a_route_of_three_with_two_loops_visits_six_in_order_and_says_so_as_events(sim):
-    with EventReader(sim.url, kinds={"run"}, timeout=120) as events:
+    with EventLog(sim.url, kinds={"run"}, timeout=120) as events:  # read all along: the run takes minutes
         run = start(sim, {"waypoints": ["a", "b", "c"], "loops": 2})
         assert run["state"] == "running" and run["current"]["name"] == "a" and run["trigger"] == "api"
         done = ended(sim, run["id"])

@@ -32,22 +32,41 @@ class StateWriter:
         self._wish = None  # ("write", text) or ("remove", None): the newest state to put on disk
         self._urgent = False
         self._last = -math.inf  # time.monotonic() of the last write
+        self._asked = 0  # wishes taken so far: each write's ticket
+        self._done = 0  # the ticket of the newest wish on disk (a newer one covers every older)
         self._closed = False
         self._thread = threading.Thread(target=self._run, name=thread_name, daemon=True)
         self._thread.start()
 
     def write(self, text, urgent=True):
-        """Put ``text`` on disk soon; not ``urgent``: at most once per :attr:`min_interval`, the newest then."""
-        self._want("write", text, urgent)
+        """Put ``text`` on disk soon; not ``urgent``: at most once per :attr:`min_interval`, the newest then.
+        Returns its ticket, for :meth:`written`."""
+        return self._want("write", text, urgent)
 
     def remove(self):
-        self._want("remove", None, True)
+        return self._want("remove", None, True)
 
     def _want(self, what, text, urgent):
         with self._cond:
-            self._wish = (what, text)
+            self._asked += 1
+            self._wish = (what, text, self._asked)
             self._urgent = self._urgent or urgent
-            self._cond.notify()
+            self._cond.notify_all()
+            return self._asked
+
+    def written(self, ticket, timeout):
+        """Wait up to ``timeout`` s until the wish of ``ticket`` (or a newer one) is on disk; True when it is.
+
+        For what is acknowledged to a user (a run started): the answer comes after the fsync, so a
+        crash right after it cannot lose it; anything else is never waited for."""
+        deadline = time.monotonic() + timeout
+        with self._cond:
+            while self._done < ticket and not self._closed:
+                left = deadline - time.monotonic()
+                if left <= 0:
+                    return False
+                self._cond.wait(left)
+            return self._done >= ticket
 
     def _run(self):
         while True:
@@ -55,8 +74,12 @@ class StateWriter:
                 wish = self._next_wish()
             if wish is None:
                 return
-            self._apply(*wish)
+            what, text, ticket = wish
+            self._apply(what, text)
             self._last = time.monotonic()
+            with self._cond:
+                self._done = ticket
+                self._cond.notify_all()
 
     def _next_wish(self):
         """Lock held: the next wish to write (urgent: at once; else once ``min_interval`` passed); None once closed."""

@@ -25,6 +25,7 @@ from flask_move_server.core.errors import (
     UnknownRun,
     WrongMode,
 )
+from flask_move_server.missions.history import SAVE_WAIT
 from flask_move_server.missions.run import (
     ACTIVE,
     CANCELED,
@@ -83,9 +84,14 @@ class RunExecutor(RunWorker):
             run.poses, run.open_end, run.watch = (list(poses) if poses is not None else None), open_end, watch
             if paused:
                 run.state, run.message = PAUSED, "Paused before {}: resume goes there.".format(run.target)
-            self._history.add(run)
+            ticket = self._history.add(run)
             self._begin(run)
-            return run.as_dict()
+            started = run.as_dict()
+        # Answered once it is on disk (outside the locks: the worker goes on meanwhile): a run acknowledged
+        # is one a crash right after cannot lose (a starved writer thread lost one under load).
+        if not self._history.saved(ticket):
+            log.warning("run %d: not on disk %g s after it started; answered anyway", run.id, SAVE_WAIT)
+        return started
 
     def extend(self, run_id, stops, poses, open_end):
         """More stops for run ``run_id`` (a fleet manager released more of its order); a run waiting at its

@@ -19,6 +19,7 @@ from flask_move_server.waypoints import locked_file
 log = logging.getLogger(__name__)
 
 KEPT = 50
+SAVE_WAIT = 2.0  # s a new run's answer waits for it to be on disk (an SD card's fsync: tens of ms)
 PROGRESS_WRITES = 10.0  # s: a run's progress (a waypoint reached) is written at most this often; states at once
 ENDED = (SUCCEEDED, FAILED, CANCELED, SKIPPED)  # a run in one of these never changes again
 CUT_SHORT = "The server stopped while this run was under way (at {}, loop {}); resume it to go on from there."
@@ -56,7 +57,7 @@ class RunHistory:
         del self._runs[self.keep:]
         self._texts = {r.id: self._texts[r.id] for r in self._runs if r.id in self._texts}
         self.next_id = max(self.next_id, run.id + 1)
-        self.changed()
+        return self.changed()
 
     def changed(self, progress=False):
         """A kept run changed: write the list soon (the same text as ``json.dumps`` of the list).
@@ -64,7 +65,11 @@ class RunHistory:
         ``progress``: only where a run is (a waypoint reached, the next one chosen), written within
         :data:`PROGRESS_WRITES` s; a crash meanwhile resumes the run a waypoint or two early.
         """
-        self._writer.write("[" + ", ".join(self._text(r) for r in self._runs) + "]\n", urgent=not progress)
+        return self._writer.write("[" + ", ".join(self._text(r) for r in self._runs) + "]\n", urgent=not progress)
+
+    def saved(self, ticket, timeout=SAVE_WAIT):
+        """Wait (at most ``timeout`` s) until the change of ``ticket`` is on disk: True when it is."""
+        return self._writer.written(ticket, timeout)
 
     def _text(self, run):
         """``run`` as JSON: an ended run's is made once (50 patrols of 100 visits: ~10 ms each time)."""

@@ -56,10 +56,13 @@ def follow_goal(client, goal_id, name, timeout=None):
     live = LiveLine(sys.stderr)
     try:
         while True:
-            nav = client.get("/status")["navigation"]
+            status = client.get("/status")
+            nav = status["navigation"]
             if goal_id is not None and nav.get("goal_id") not in (None, goal_id):
                 nav = dict(nav, state="canceled", message=replaced_sentence(name))
             state = nav.get("state")
+            if state == "stuck" and not (status.get("stuck") or {}).get("waiting", True):
+                state = "active"  # held while the robot gets itself out: the goal goes on after
             if state == "succeeded":
                 live.end()
                 _say("arrived at {}.".format(name))
@@ -85,6 +88,13 @@ def cmd_stop(client, args):
     """Cancel the goal, end teleop, zero velocity."""
     answer = client.post("/stop") or {}
     _say("stopped" + (" (goal canceled)." if answer.get("canceled_goal") else "."))
+    return ExitStatus.OK
+
+
+def cmd_back_out(client, args):
+    """A robot that said it is stuck, and waits, backs out by itself (POST /stuck/back_out)."""
+    stuck = (client.post("/stuck/back_out") or {}).get("stuck") or {}
+    _say("backing out: {}".format(stuck.get("message") or "see robotctl status."))
     return ExitStatus.OK
 
 
@@ -218,6 +228,8 @@ def build_parser():
                    help="with --wait: give up waiting after S seconds (exit 12)")
     p.set_defaults(run=cmd_goto)
     sub.add_parser("stop", help="cancel the goal and stop").set_defaults(run=cmd_stop)
+    sub.add_parser("back-out", help="a robot that says it is stuck backs out by itself").set_defaults(
+        run=cmd_back_out)
     p = sub.add_parser("estop", help="latch the e-stop ('estop release' lifts it)")
     p.add_argument("action", nargs="?", choices=["release"], help="release the latched e-stop")
     p.set_defaults(run=cmd_estop)

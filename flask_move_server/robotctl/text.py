@@ -64,6 +64,10 @@ def describe_status(data, url):
         motors.get("backend", "?"), motors.get("left") or 0.0, motors.get("right") or 0.0))
     if "estop" in data:
         lines.append("e-stop:     " + _describe_estop(data["estop"] or {}))
+    stuck = data.get("stuck") or {}
+    if stuck.get("state", "free") != "free":
+        lines.append("stuck:      " + (stuck.get("message") or stuck["state"]) + (
+            " ('robotctl back-out' backs it out)" if stuck.get("waiting") else ""))
     problem = (data.get("waypoints") or {}).get("problem")
     if problem:
         lines.append("waypoints:  PROBLEM: " + problem)
@@ -87,7 +91,7 @@ def _describe_navigation(nav):
         return "idle"
     target = nav.get("target") or "({})".format(xy_yaw(nav.get("goal") or {}))
     text = "{} -> {}".format(state, target)
-    if state == "active" and nav.get("distance_remaining") is not None:
+    if state in ("active", "stuck") and nav.get("distance_remaining") is not None:
         text += ", {:.2f} m to go".format(nav["distance_remaining"])
     return text
 
