@@ -58,6 +58,14 @@ def stuck_state(robot):
     return robot.status()["stuck"]["state"]
 
 
+def push_until_pressed(robot, seconds=4.0):
+    """Drive forward by joystick, as an owner would, until the robot says it is pressed against something."""
+    deadline = time.monotonic() + seconds
+    while stuck_state(robot) != "stuck" and time.monotonic() < deadline:
+        robot.teleop(0.2, 0.0)
+        time.sleep(0.1)
+
+
 def test_wedged_by_its_goal_it_says_so_backs_out_and_goes_on(stuck, move_base):
     robot, world, recovery, relocalize, told = stuck
     seq = robot.goto(Goal(Pose2D(HOLD_X, 0.0, 0.0), "kitchen"))
@@ -116,11 +124,7 @@ def test_goals_aborted_at_once_in_the_open_are_just_aborted(stuck, move_base):
 
 def test_pushed_by_the_joystick_it_says_so_stops_and_is_free_once_it_moves(stuck):
     robot, world, recovery, _, told = stuck
-    for _ in range(40):
-        if stuck_state(robot) == "stuck":
-            break
-        robot.teleop(0.2, 0.0)
-        time.sleep(0.1)
+    push_until_pressed(robot)
     status = robot.status()
     assert status["stuck"]["state"] == "stuck" and status["stuck"]["message"].startswith("Pressed against something")
     assert not status["teleop"]["active"]  # it stopped commanding the motors against the wall
@@ -142,11 +146,7 @@ def test_asked_to_back_out_it_backs_out_slowly_and_waits_and_a_free_robot_says_i
     robot, world, recovery, relocalize, told = stuck
     with pytest.raises(NotStuck):
         robot.back_out()
-    for _ in range(40):
-        if stuck_state(robot) == "stuck":
-            break
-        robot.teleop(0.2, 0.0)
-        time.sleep(0.1)
+    push_until_pressed(robot)
     assert robot.back_out()["state"] in ("stuck", "backing_out")
     wait_for(lambda: stuck_state(robot) == "free", timeout=15, message="backed out")
     assert told == ["stuck", "backing_out", "free"]
@@ -156,11 +156,7 @@ def test_asked_to_back_out_it_backs_out_slowly_and_waits_and_a_free_robot_says_i
 
 def test_the_joystick_ends_a_back_out_the_owner_asked_for(stuck):
     robot, world, recovery, _, _ = stuck
-    for _ in range(40):
-        if stuck_state(robot) == "stuck":
-            break
-        robot.teleop(0.2, 0.0)
-        time.sleep(0.1)
+    push_until_pressed(robot)
     robot.back_out()
     wait_for(lambda: stuck_state(robot) == "backing_out", timeout=5, message="backing out")
     robot.teleop(0.0, 0.5)  # the owner turns it instead
