@@ -11,7 +11,9 @@ touches the map. This folder holds what the server does about it:
 - ``detector.py``: the signs of a stuck robot, weighed into one verdict (pure);
 - ``words.py``: what the owner reads (pure);
 - ``back_out.py``: the one behaviour that frees it, a slow straight back-out (pure steps);
-- ``recovery.py``: the state the server shows (``/status`` ``stuck``), and the back-out under way
-  with the goal held, then re-sent (no rospy);
+- ``relocate.py``: the position that slid with the odometry, put back where the laser fits (pure);
+- ``recovery.py``: the state the server shows (``/status`` ``stuck``) and its signs weighed (no rospy);
+- ``way_out.py``: its workers: the back-out with the goal held, then re-sent; the owner's back-out;
+  the position put back (no rospy);
 - ``watch.py``: its ROS side, ``/odom`` and the laser while the robot is told to move.
 """
