@@ -61,6 +61,7 @@ BENCHMARKS = [
     ("page", "bench_page.py", ["--loads", "3"], ["--loads", "1"]),
     ("page_silence", "bench_page_silence.py", ["--stalls", "2"], ["--stalls", "1"]),
     ("scan", "bench_scan.py", ["--seconds", "4", "--repeat", "500"], ["--seconds", "0.5", "--repeat", "5"]),
+    ("webhooks", "bench_webhooks.py", ["--seconds", "10"], ["--seconds", "1"]),
 ]
 # A markdown table's separator line: what every benchmark prints under its header row.
 TABLE_RULE = re.compile(r"^\|\s*:?-{3}")

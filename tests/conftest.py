@@ -239,8 +239,8 @@ def stop_waitress(server):
 class ServerProcess:
     """``flask-move-server ARGS`` in a child process, its stderr collected as it comes."""
 
-    def __init__(self, *args, env=None, start_timeout=30):
-        self.proc = run_cli(*args, env=env)
+    def __init__(self, *args, env=None, start_timeout=30, cwd=ROOT):
+        self.proc = run_cli(*args, env=env, cwd=cwd)  # cwd: the checkout whose server runs (python -m reads it first)
         self.lines = []
         overload.SERVERS.add(self)  # a failure reads the world's "machine overloaded" lines
         self._reader = threading.Thread(target=self._read, daemon=True)

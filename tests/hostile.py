@@ -5,6 +5,7 @@ clients that send a request line one byte at a time and never finish it. A
 connection the server closes is opened again, so the count stays near ``count``
 for as long as the client runs (as an attacker's would). Used by the tests and
 by bench/bench_abuse.py. Loopback only; the run is bounded by ``max_seconds``.
+And a hostile webhook receiver (``HostileReceiver``): an endless answer, or one a byte at a time.
 """
 
 import select
@@ -162,3 +163,59 @@ class PipelineFlood:
         fresh = self._open()
         if fresh is not None:
             owed[fresh] = self.depth
+
+
+class HostileReceiver:
+    """A webhook receiver that answers 200 and then a body without end, at most ``limit`` bytes a connection
+    (``trickle``: or sends its answer a byte at a time, every ``trickle`` s, never finishing the headers), on a
+    raw socket of 127.0.0.1; counts what it sent (``sent``) and the connections (issue 34)."""
+
+    def __init__(self, trickle=None, limit=2 ** 40):
+        import socket
+
+        self.trickle, self.limit, self.sent, self.connections = trickle, limit, 0, 0
+        self._stop = threading.Event()
+        self._server = socket.socket()
+        self._server.bind(("127.0.0.1", 0))
+        self._server.listen(8)
+        self._server.settimeout(0.2)
+        self.url = "http://127.0.0.1:{}/api/webhook/secret-id".format(self._server.getsockname()[1])
+        self._thread = threading.Thread(target=self._serve, daemon=True)
+        self._thread.start()
+
+    def _serve(self):
+        import socket
+
+        while not self._stop.is_set():
+            try:
+                conn, _ = self._server.accept()
+            except socket.timeout:
+                continue
+            self.connections += 1
+            threading.Thread(target=self._answer, args=(conn,), daemon=True).start()
+
+    def _answer(self, conn):
+        conn.settimeout(0.5)
+        try:
+            conn.recv(65536)
+            if self.trickle:
+                for byte in b"HTTP/1.1 200 OK\r\nX-Slow: " + b"y" * 10000:
+                    if self._stop.wait(self.trickle):
+                        return
+                    conn.sendall(bytes([byte]))
+                    self.sent += 1
+                return
+            conn.sendall(b"HTTP/1.1 200 OK\r\nContent-Type: application/octet-stream\r\n\r\n")
+            chunk, sent = b"x" * 65536, 0
+            while not self._stop.is_set() and sent < self.limit:
+                conn.sendall(chunk)
+                self.sent, sent = self.sent + len(chunk), sent + len(chunk)
+        except OSError:
+            pass  # the robot closed the connection
+        finally:
+            conn.close()
+
+    def close(self):
+        self._stop.set()
+        self._thread.join(2)
+        self._server.close()

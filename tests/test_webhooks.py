@@ -24,6 +24,7 @@ from flask_move_server.core.happenings import Happenings
 from flask_move_server.mqtt.webhooks import Webhooks
 from flask_move_server.web import create_app
 from tests.conftest import wait_for
+from tests.hostile import HostileReceiver
 from tests.standins.move_base import HOLD_X
 
 FAST = (0.05, 0.1)  # back-off between tries in tests (1 s, 2 s in the server)
@@ -285,8 +286,8 @@ def test_a_hanging_receiver_delays_neither_the_robot_nor_close(robot_config, rea
         started = time.monotonic()
         assert client.post("/stop", headers=auth).status_code == 200
         assert time.monotonic() - started < 2.0  # a stop that waited for a POST would take the 1 s timeout x 3
-        # One worker: the other receiver gets its POSTs once each hanging try has timed out.
-        wait_for(lambda: len(other.requests) >= 1, timeout=8, message="the other webhook's POST")
+        # A worker per receiver: the other one gets its POSTs while the hanging one's tries wait out.
+        wait_for(lambda: len(other.requests) >= 3, timeout=2, message="the other webhook's three POSTs")
     finally:
         started = time.monotonic()
         sent.close()
@@ -373,3 +374,78 @@ def test_webhooks_built_in_code_refuse_an_empty_url():
     with pytest.raises(ConfigError, match=r"webhooks\[0\]\.url"):
         Webhooks([WebhookConfig()], "robot", Teller())
 
+
+
+# hostile receivers (issue 34) ------------------------------------------------------------------
+
+
+def test_an_endless_answer_is_not_read(receivers):
+    """The status counts, the body is never read: a receiver streaming for ever once took the robot's
+    memory to 3 GB. The POST is delivered and the connection closed after the status line."""
+    endless = HostileReceiver()
+    teller = Teller()
+    try:
+        with webhooks([hook(endless.url)], teller) as sent:
+            teller.tell("estop", {"source": "api"})
+            wait_for(lambda: sent.status()["sent"] == 1, timeout=5, message="delivered")
+            time.sleep(0.5)
+            assert endless.sent < 8 * 2 ** 20  # what the kernel's buffers took before the robot closed it
+            assert endless.connections == 1
+    finally:
+        endless.close()
+
+
+def test_a_trickling_receiver_gets_a_deadline_per_try_and_delays_no_other(receivers, caplog):
+    """A byte every 0.3 s keeps each read within its timeout: the try as a whole has 1 s here (5 s in the
+    server), then it is tried again, given up after three; another receiver is served meanwhile."""
+    trickler, other = HostileReceiver(trickle=0.3), receivers()
+    teller = Teller()
+    try:
+        with webhooks([hook(trickler.url), hook(other.url)], teller, timeout=1.0) as sent:
+            started = time.monotonic()
+            teller.tell("estop", {"source": "api"})
+            wait_for(lambda: len(other.requests) == 1, timeout=1, message="the other receiver served at once")
+            wait_for(lambda: sent.status()["failed"] == 1, timeout=6, message="the trickler given up")
+            assert time.monotonic() - started < 1.0 * 3 + sum(FAST) + 1.0
+        assert "no answer within 1 s" in caplog.text and "secret-id" not in caplog.text
+    finally:
+        trickler.close()
+
+
+def test_a_signed_webhook_carries_the_hmac_of_its_body(receivers, tmp_path):
+    import hashlib
+    import hmac
+
+    signed, plain, from_file = receivers(), receivers(), receivers()
+    (tmp_path / "secret").write_text("file secret\n")
+    teller = Teller()
+    hooks = [WebhookConfig(url=signed.url, secret="s3cr3t ünicode"), hook(plain.url),
+             WebhookConfig(url=from_file.url, secret_file=str(tmp_path / "secret"))]
+    with webhooks(hooks, teller) as sent:
+        teller.tell("estop", {"source": "api"})
+        wait_for(lambda: sent.status()["sent"] == 3, message="three POSTs")
+    for receiver, secret in ((signed, "s3cr3t ünicode"), (from_file, "file secret")):
+        request = receiver.requests[0]
+        expected = "sha256=" + hmac.new(secret.encode(), request["body"], hashlib.sha256).hexdigest()
+        assert request["headers"]["X-Robot-Signature-256"] == expected
+    assert "X-Robot-Signature-256" not in plain.requests[0]["headers"]
+
+
+def test_a_secret_given_twice_or_unreadable_is_refused_at_start(tmp_path):
+    with pytest.raises(ConfigError, match="not both"):
+        Webhooks([WebhookConfig(url="http://hub.lan/x", secret="a", secret_file=str(tmp_path / "s"))], "r", Teller())
+    with pytest.raises(ConfigError, match="cannot read the webhook's secret"):
+        Webhooks([WebhookConfig(url="http://hub.lan/x", secret_file=str(tmp_path / "missing"))], "r", Teller())
+
+
+def test_a_url_whose_secret_path_needs_encoding_never_reaches_the_log(caplog):
+    from tests.conftest import free_port
+
+    teller = Teller()
+    url = "http://127.0.0.1:{}/api/webhook/s3cr%C3%A9t ünïcode?token=hidden".format(free_port())
+    with webhooks([WebhookConfig(url=url.replace(" ", "%20"))], teller) as sent:
+        teller.tell("estop", {"source": "api"})
+        wait_for(lambda: sent.status()["failed"] == 1, message="given up")
+    assert "not delivered" in caplog.text
+    for secret in ("s3cr", "%C3", "nïcode", "token", "hidden", "webhook/"):
+        assert secret not in caplog.text

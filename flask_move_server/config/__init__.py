@@ -310,6 +310,8 @@ class WebhookConfig:
 
     url: str = checked(rules.web_url, default="")
     events: List[Literal[WEBHOOK_EVENTS]] = field(default_factory=lambda: list(WEBHOOK_EVENTS))
+    secret: Optional[str] = None  # signs each body (X-Robot-Signature-256: sha256=HMAC); or from secret_file
+    secret_file: Optional[str] = path_field(default=None)
 
 
 @dataclass
