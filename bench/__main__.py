@@ -62,6 +62,8 @@ BENCHMARKS = [
     ("page_silence", "bench_page_silence.py", ["--stalls", "2"], ["--stalls", "1"]),
     ("scan", "bench_scan.py", ["--seconds", "4", "--repeat", "500"], ["--seconds", "0.5", "--repeat", "5"]),
     ("webhooks", "bench_webhooks.py", ["--seconds", "10"], ["--seconds", "1"]),
+    ("mqtt_floods", "bench_mqtt_floods.py", ["--window", "10"],
+     ["--window", "1", "--only", "instant-long,goto-unknown"]),
 ]
 # A markdown table's separator line: what every benchmark prints under its header row.
 TABLE_RULE = re.compile(r"^\|\s*:?-{3}")

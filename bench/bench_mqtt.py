@@ -93,20 +93,21 @@ class Sim(ServerProcess):
     """``flask-move-server --sim`` (speed factor 1, its own ROS master), MQTT on ``broker`` or off.
 
     ``name``: the robot's (``mdns.hostname``: its MQTT topics and client id, so several servers can
-    share a broker); ``extra``: more lines of the ``mqtt:`` section (indented two spaces)."""
+    share a broker); ``extra``: more lines of the ``mqtt:`` section (indented two spaces); ``root``: the
+    checkout whose server runs; ``master_uri``: a master already running (else the sim starts its own)."""
 
-    def __init__(self, home, broker=None, name="robot", extra=""):
+    def __init__(self, home, broker=None, name="robot", extra="", root=ROOT, master_uri=None):
         home.mkdir(parents=True, exist_ok=True)
         waypoints = home / "waypoints.yaml"
         shutil.copy(os.path.join(ROOT, "config", "waypoints.demo.yaml"), str(waypoints))
         config = home / "sim.yaml"
         config.write_text("mdns:\n  hostname: {}\nmqtt:\n  enabled: {}\n  host: 127.0.0.1\n  port: {}\n{}".format(
             name, "true" if broker else "false", broker.port if broker else 1883, extra))
-        self.master_uri = "http://127.0.0.1:{}".format(free_port())
+        self.master_uri = master_uri or "http://127.0.0.1:{}".format(free_port())
         env = {"ROS_MASTER_URI": self.master_uri, "ROS_HOME": str(home), "ROS_LOG_DIR": str(home / "log"),
-               "ROS_IP": "127.0.0.1"}
+               "ROS_IP": "127.0.0.1", "PYTHONPATH": root}
         super().__init__("--sim", "--config", str(config), "--port", "0", "--no-mdns", "--waypoints", str(waypoints),
-                         env=env, start_timeout=60)
+                         env=env, start_timeout=60, cwd=root)
         host, port = self.url.rsplit("/", 1)[1].split(":")
         self.conn = http.client.HTTPConnection(host, int(port), timeout=10)
         wait_for(lambda: self.get("/health").json().get("move_base") == "ready", timeout=60, message="move_base")

@@ -364,6 +364,51 @@ def test_an_unknown_instant_action_fails_and_says_so(sim, fleet, idle):
     assert standing(sim, 0.5)
 
 
+def _instant_raw(fleet, actions):
+    fleet.raw("instantActions", json.dumps(dict(fleet.header(), actions=actions)))
+
+
+def _state_bytes(fleet):
+    return max(len(text.encode("utf-8")) for _t, text, _r in fleet.on(BASE + "state")[-20:])
+
+
+def test_instant_actions_with_ids_past_the_factsheets_length_are_refused_without_echo(sim, fleet, idle):
+    """Issue 34: 60 such messages (255 KB each) made every state 17 MB and stalled /stop and the motors."""
+    long = "x" * 2400
+    for n in range(6):  # each message ~250 KB: 50 actions of an id and a type of 2400 characters
+        _instant_raw(fleet, [{"actionId": "{}-{}{}".format(n, i, long), "actionType": long + str(i),
+                              "blockingType": "NONE"} for i in range(50)])
+    state = fleet.ask_state(lambda s: any("longer than 200 characters" in e["errorDescription"]
+                                          for e in s["errors"]))
+    assert not any(long in a["actionId"] or long in a["actionType"] for a in state["actionStates"])
+    assert long not in json.dumps(state["errors"])
+    assert _state_bytes(fleet) < 16 * 1024
+    assert sim.post("/stop").status_code == 200 and standing(sim, 0.3)
+
+
+def test_many_long_unknown_instant_actions_keep_the_state_bounded(sim, fleet, idle):
+    ids = ["é" * 190 + "{:05d}".format(i) for i in range(300)]  # 200 characters, twice the bytes
+    for chunk in range(0, 300, 50):
+        _instant_raw(fleet, [{"actionId": i, "actionType": "ü" * 190 + i[-10:], "blockingType": "NONE"}
+                             for i in ids[chunk:chunk + 50]])
+    state = fleet.ask_state(lambda s: _action(s, ids[-1]) is not None, message="the last action told")
+    assert _action(state, ids[-1])["actionStatus"] == "FAILED"
+    assert _action(state, ids[0]) is None  # the oldest left out
+    kept = [a for a in state["actionStates"] if a["actionId"] in ids]
+    assert 10 <= len(kept) < 50  # bounded in bytes (48 KB), before the 50 states the count allows
+    assert len(json.dumps(state["errors"], ensure_ascii=False).encode("utf-8")) <= 16 * 1024
+    assert _state_bytes(fleet) < 80 * 1024
+
+
+def test_init_position_with_a_long_map_or_node_id_is_refused(sim, fleet, idle):
+    here = where(idle)
+    fleet.instant(("init-long", "initPosition", {"x": here["x"], "y": here["y"], "theta": 0.0,
+                                                "mapId": DEMO, "lastNodeId": "n" * 5000}))
+    state = fleet.state(lambda s: _action(s, "init-long") is not None)
+    assert _action(state, "init-long")["actionStatus"] == "FAILED"
+    assert state["lastNodeId"] != "n" * 5000 and "n" * 300 not in json.dumps(state)
+
+
 # the owner's commands beside the fleet manager's -------------------------------------------
 
 def test_the_owner_cannot_skip_a_node_of_the_fleet_managers_order(sim, fleet, idle):

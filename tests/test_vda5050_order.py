@@ -263,3 +263,23 @@ def test_a_copy_kept_before_an_update_catches_up_with_what_the_robot_did_since()
     assert [n["nodeId"] for n in before.nodes] == ["c"]
     book.drop()
     assert not before.caught_up(book).busy
+
+
+def test_a_state_over_its_ceiling_leaves_out_action_states_then_errors(monkeypatch, caplog):
+    import logging
+    import types
+
+    from flask_move_server.process.log_limits import Throttled
+    from flask_move_server.vda5050 import vehicle
+
+    monkeypatch.setattr(messages, "MAX_STATE", 2000)
+    teller = types.SimpleNamespace(_oversize=Throttled(logging.getLogger("test"), "lines"))
+    body = {"nodeStates": [{"nodeId": "n"}], "actionStates": [{"actionId": "a" * 1800}], "errors": [{"e": "x" * 300}]}
+    assert vehicle.Vehicle._within_ceiling(teller, body)["actionStates"] == []
+    assert vehicle.Vehicle._within_ceiling(teller, body)["errors"] == body["errors"]
+    body["errors"] = [{"e": "x" * 1990}]
+    smaller = vehicle.Vehicle._within_ceiling(teller, body)
+    assert smaller["errors"] == [] and smaller["nodeStates"] == body["nodeStates"]
+    assert "sent without its actionStates and errors" in caplog.text
+    small = {"nodeStates": [], "actionStates": [{"actionId": "a"}], "errors": []}
+    assert vehicle.Vehicle._within_ceiling(teller, small) == small

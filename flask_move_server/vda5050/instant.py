@@ -3,6 +3,9 @@
 ``cancelOrder`` (``noOrderToCancel`` without an order), ``startPause`` / ``stopPause``,
 ``initPosition`` (relocalize on the active map), ``stateRequest``, ``factsheetRequest``. Another
 action type FAILS, saying so. One action failing never keeps the next of the message from its turn.
+Every text the state may echo (ids, types, ``mapId``, ``lastNodeId``) is at most ``MAX_ID``
+characters, as the factsheet's ``idLen`` says, or the message is refused without echoing it: 60
+messages of 255 KB ids made each state 17 MB and stalled the robot (issue 34).
 """
 
 import logging
@@ -10,7 +13,7 @@ import logging
 from flask_move_server.core.errors import MoveServerError
 from flask_move_server.core.geometry import Pose2D
 from flask_move_server.vda5050.messages import MAX_ACTIONS
-from flask_move_server.vda5050.order import HEADER, Refusal, finite
+from flask_move_server.vda5050.order import HEADER, MAX_ID, Refusal, finite
 
 log = logging.getLogger(__name__)
 
@@ -76,6 +79,11 @@ class InstantActions:
             if isinstance(value, bool) or not isinstance(value, (int, float)) or not finite(value):
                 raise Refusal("validationError", "initPosition needs a number '{}'.".format(key),
                               [("actionId", action["actionId"])])
+        for key in ("mapId", "lastNodeId"):
+            value = params.get(key)
+            if value is not None and (not isinstance(value, str) or len(value) > MAX_ID):
+                raise Refusal("validationError", "initPosition's '{}' is a text of at most {} characters.".format(
+                    key, MAX_ID), [("actionId", action["actionId"])])
         active = self._active_map()
         if params.get("mapId") != active:
             raise MoveServerError("mapId {!r} is not the map the robot navigates on ({}).".format(
@@ -109,6 +117,10 @@ def _actions(message):
                                                    for k in ("actionId", "actionType", "blockingType")):
             raise Refusal("validationError", "Each instant action has text 'actionId', 'actionType' and "
                           "'blockingType'.")
+        long = next((k for k in ("actionId", "actionType", "blockingType") if len(action[k]) > MAX_ID), None)
+        if long is not None:
+            raise Refusal("validationError", "An instant action's '{}' is longer than {} characters.".format(
+                long, MAX_ID))
         if not isinstance(action.get("actionParameters", []), list):
             raise Refusal("validationError", "actionParameters of {} is a list.".format(action["actionId"]),
                           [("actionId", action["actionId"])])

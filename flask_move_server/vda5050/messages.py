@@ -23,6 +23,9 @@ INSTANT_ACTIONS = {
 INIT_POSITION = (("x", "FLOAT"), ("y", "FLOAT"), ("theta", "FLOAT"), ("mapId", "STRING"), ("lastNodeId", "STRING"))
 MAX_PAYLOAD = 256 * 1024  # bytes of an order or instant actions message taken (the factsheet's msgLen)
 MAX_ACTIONS = 50  # instant actions in one message
+# Bytes of a state message: its node and edge states are at most an order's (MAX_PAYLOAD), its action
+# states and errors at most report.py's KEPT_*_BYTES; past it (a bug), action states then errors are left out.
+MAX_STATE = 2 * MAX_PAYLOAD
 
 
 def timestamp(now=None):

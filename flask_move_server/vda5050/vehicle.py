@@ -19,6 +19,7 @@ import math
 import threading
 import time
 
+from flask_move_server.process.log_limits import Throttled
 from flask_move_server.vda5050 import messages
 from flask_move_server.vda5050.driving import Driving
 from flask_move_server.vda5050.instant import InstantActions
@@ -60,6 +61,7 @@ class Vehicle:
         self._last_pose, self._last_shown = None, 0.0
         self._position_read, self._read_at = None, None  # agvPosition, read at most once a second unless sent
         self._busy = True
+        self._oversize = Throttled(log, "VDA 5050 oversize state lines", burst=3)
         self._closing = threading.Event()
         self._thread = None
         link.set_will(self.topic("connection"), self._connection("CONNECTIONBROKEN"))
@@ -162,11 +164,23 @@ class Vehicle:
             position = self._position_at(now, fresh=True)
             self._last_state, self._last_sent = trigger, now
             sent = dict(body, agvPosition=position) if position is not None else body
-            self._link.publish(self.topic("state"), self._json("state", sent), qos=0)
+            self._link.publish(self.topic("state"), self._json("state", self._within_ceiling(sent)), qos=0)
         if position is not None and position != self._last_pose and now - self._last_shown >= VISUALIZATION_EVERY:
             self._last_pose, self._last_shown = position, now
             self._link.publish(self.topic("visualization"), self._json("visualization", {"agvPosition": position}),
                                qos=0)
+
+    def _within_ceiling(self, body):
+        """``body``, or it without its action states (then its errors) when it is over MAX_STATE bytes."""
+        for leave_out in ((), ("actionStates",), ("actionStates", "errors")):
+            smaller = dict(body, **{key: [] for key in leave_out})
+            size = len(json.dumps(smaller, ensure_ascii=False).encode("utf-8"))
+            if size <= messages.MAX_STATE:
+                if leave_out:
+                    self._oversize.log(logging.WARNING, "VDA 5050: a state of %d bytes is over %d: sent without "
+                                       "its %s", size, messages.MAX_STATE, " and ".join(leave_out))
+                return smaller
+        return smaller
 
     def _position_at(self, now, fresh=False):
         """agvPosition, read again when ``fresh`` or a second old (a tf lookup is most of a look's cost)."""
