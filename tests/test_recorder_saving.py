@@ -139,8 +139,10 @@ def _next_line(lines, predicate, what, timeout=30):
 
 
 def test_ctrl_c_while_saving_leaves_the_file_valid_and_complete(ros_node, unique_name, tmp_path):
-    big = tmp_path / "big.yaml"  # a big file makes every save take a while
-    big.write_text("waypoints:\n" + "".join("  old{}: [{}.5, 1.0, 0.0]\n".format(i, i) for i in range(3000)))
+    big = tmp_path / "big.yaml"  # a big file makes every save take a while (long names: a map keeps 1000)
+    old = 900
+    big.write_text("waypoints:\n" + "".join("  old{}_{}: [{}.5, 1.0, 0.0]\n".format(i, "x" * 50, i)
+                                            for i in range(old)))
     topic = "/{}/clicked_point".format(unique_name)
     with recorder_process("--waypoints", str(big), "--auto-names", "--clicked-topic", topic,
                           "--map-frame", unique_name + "_map") as (proc, lines):
@@ -173,7 +175,7 @@ def test_ctrl_c_while_saving_leaves_the_file_valid_and_complete(ros_node, unique
     saved = [line.split()[1] for line in lines.transcript if line.startswith("Saved wp")]
     bye = [line for line in lines.transcript if line.startswith("Bye")]
     waypoints = parse(big.read_text())  # valid: parses, no partial entry
-    assert set(saved) <= set(waypoints) and len(waypoints) == 3000 + len(saved)
+    assert set(saved) <= set(waypoints) and len(waypoints) == old + len(saved)
     assert bye == ["Bye: {} waypoints in the file {}.".format(len(waypoints), big)]
     assert [p.name for p in tmp_path.iterdir() if p.name.endswith(".tmp")] == []
 

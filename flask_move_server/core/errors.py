@@ -149,6 +149,12 @@ class WaypointFileError(MoveServerError, OSError):
     code = "waypoints_file"
 
 
+class MapFull(MoveServerError, RuntimeError):
+    """A change would take a map past what it keeps (waypoints, routes, the file's size); nothing was changed."""
+
+    code = "map_full"
+
+
 class WaypointsLocked(WaypointFileError):
     """Another process held the waypoints file's lock too long; nothing was changed (retry)."""
 

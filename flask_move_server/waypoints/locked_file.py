@@ -160,8 +160,12 @@ def atomic_write(path, text, backup_text=None):
     the last good version it loaded, never what happens to be on disk now (a
     hand edit in progress must not become the backup). Nothing is written through
     a symbolic link: each file is written to a new temporary one and renamed over
-    the name, so a link at ``path`` or ``path.bak`` is replaced, its target untouched.
+    the name, so a link at ``path`` or ``path.bak`` is replaced, its target untouched. A
+    ``text`` longer than :func:`read` takes is refused (WaypointFileError), nothing written.
     """
+    if len(text) > MAX_TEXT:  # never a file that read() would refuse: the robot would lose it at the next start
+        raise WaypointFileError("cannot save {}: {} characters, more than the {} this file may hold; nothing was "
+                                "written".format(path, len(text), MAX_TEXT))
     mode = os.stat(path).st_mode & 0o7777 if os.path.exists(path) else new_file_mode()
     tmp = _write_temporary(path, text, mode)  # first: a full disk fails the save before .bak changes
     try:

@@ -27,6 +27,7 @@ import threading
 
 from flask_move_server.core.errors import (
     BadRoute,
+    MapFull,
     UnknownRoute,
     UnknownWaypoint,
     WaypointExists,
@@ -40,6 +41,15 @@ from flask_move_server.waypoints import locked_file as waypoints_file
 from flask_move_server.waypoints.yaml_format import Document, dump, entries_of, parse, routes_of, waypoints_of
 
 log = logging.getLogger(__name__)
+
+# What one map keeps: far beyond a flat or a lab, far below what a save on a Pi's SD card can take in
+# a blink. A change past one of them is MapFull, nothing written; a hand-edited file beyond them
+# still loads, and changes that do not add to it (a delete) still work.
+MAX_WAYPOINTS = 1000
+MAX_ROUTES = 100
+# Characters the API writes: an eighth of what the reader takes (room for hand edits and comments), and a
+# save and a re-read of pure-Python YAML at that size stay under a second on this machine (a Pi 4: ~3 s).
+MAX_SAVED = 512 * 1024
 
 
 class WaypointStore:
@@ -225,6 +235,7 @@ class WaypointStore:
             self._refresh(strict=True)
             waypoints, routes = dict(self._waypoints), dict(self._routes)
             yield waypoints, routes
+            _check_room(waypoints, routes, self._waypoints, self._routes)
             self._save(waypoints, routes)
             self._waypoints, self._routes = waypoints, routes
             self.version += 1
@@ -276,6 +287,10 @@ class WaypointStore:
 
     def _save(self, waypoints, routes):
         text = dump(waypoints.values(), routes.values())
+        if len(text) > MAX_SAVED and len(text) > len(self._good_text or ""):
+            raise MapFull("This change would make the map's waypoints file {} characters long; it holds at most {} "
+                          "(its waypoints and routes). Nothing was changed: delete routes or waypoints this map no "
+                          "longer needs, or make long routes shorter.".format(len(text), MAX_SAVED))
         try:
             waypoints_file.atomic_write(self.path, text, backup_text=self._good_text)
         except OSError as exc:
@@ -285,6 +300,15 @@ class WaypointStore:
                         "afresh); the file as it was, comments and all, is %s.bak until the next change: copy "
                         "it to keep it", self.path, self.path)
         self._stamp, self._good_text = waypoints_file.stamp(self.path), text
+
+
+def _check_room(waypoints, routes, before_waypoints, before_routes):
+    """MapFull when a change adds waypoints or routes past what a map keeps (a shrinking change always passes)."""
+    for what, now, before, limit, where in (("waypoints", waypoints, before_waypoints, MAX_WAYPOINTS, "/waypoints"),
+                                            ("routes", routes, before_routes, MAX_ROUTES, "/routes")):
+        if len(now) > limit and len(now) > len(before):
+            raise MapFull("A map keeps at most {} {}, and this one has {}. Nothing was changed: delete {} it no longer "
+                          "needs (DELETE {}/<name>) first.".format(limit, what, len(before), what, where))
 
 
 def _listed(kind, names):

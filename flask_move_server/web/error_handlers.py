@@ -29,6 +29,7 @@ STATUS = (
     (errors.NavigationFailed, 409),
     (errors.WaypointExists, 409),
     (errors.WaypointInUse, 409),
+    (errors.MapFull, 409),
     (errors.RunConflict, 409),
     (errors.NotStuck, 409),
     (errors.Pressed, 409),
