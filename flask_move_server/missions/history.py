@@ -4,13 +4,16 @@ Every change of a run is written (by a :class:`~flask_move_server.core.state_wri
 atomically, never in the caller's thread). A run still ``running`` or ``paused`` in the file at
 start was cut short by a stop of the server (SIGTERM, a crash, a power cut): it is
 ``interrupted``, and stays so until someone resumes it; the robot never drives off by itself
-after a restart. A file that cannot be read is set aside with a warning: the runs start afresh.
+after a restart. A file that cannot be read is renamed aside (``runs.json.broken-<time>``) with one
+warning, and the runs start afresh; a run in it that does not pass the API's checks (a hand edit:
+``"dwell": 1e308``) sets the file aside the same way, and the other runs are kept.
 Not thread-safe: the executor calls it under its own lock. Pure: no rospy, no Flask.
 """
 
 import json
 import logging
 import os
+import time
 
 from flask_move_server.core.state_writer import StateWriter
 from flask_move_server.missions.run import CANCELED, FAILED, INTERRUPTED, SKIPPED, SUCCEEDED, Run
@@ -31,25 +34,51 @@ class RunHistory:
     def __init__(self, path, keep=KEPT):
         self.path = path
         self.keep = keep
+        self._rewrite = False  # runs were dropped on loading: the file is written again at once
         self._runs = self._load()
         self._texts = {}  # run id -> its JSON, for the ended runs (each made once, not at every change)
         self.next_id = max((r.id for r in self._runs), default=0) + 1
         self._writer = StateWriter(path, "the runs", "run-history", min_interval=PROGRESS_WRITES)
-        if any(r.state == INTERRUPTED for r in self._runs):
+        if self._rewrite or any(r.state == INTERRUPTED for r in self._runs):
             self.changed()
 
     def _load(self):
+        """The kept runs; a file that cannot be read, or holds a run that does not pass the API's checks, is
+        renamed aside (``runs.json.broken-<time>``) and said once, and the runs that pass are kept."""
         try:
             text = locked_file.read(self.path)  # bounded: a hand-made file cannot be huge
-            runs = [Run.from_dict(item) for item in json.loads(text or "[]")[:self.keep]]
-        except (OSError, ValueError, TypeError, KeyError, AttributeError, RecursionError) as exc:
-            log.warning("the runs kept in %s cannot be read (%s): starting a new list", self.path, exc)
+            items = json.loads(text or "[]")
+            if not isinstance(items, list):
+                raise ValueError("not a list of runs")
+        except (OSError, ValueError, RecursionError) as exc:
+            self._set_aside("cannot be read ({})".format(exc), "starting a new list")
             return []
+        runs, bad = [], []
+        for i, item in enumerate(items[:self.keep]):
+            try:
+                runs.append(Run.from_dict(item))
+            except (ValueError, TypeError, KeyError, AttributeError) as exc:
+                bad.append("entry {}: {}".format(i + 1, exc))
+        if bad:
+            self._set_aside("holds {} run{} that cannot be taken ({})".format(
+                len(bad), "s" if len(bad) > 1 else "", "; ".join(bad[:3])), "keeping the other {}".format(len(runs)))
         for run in runs:
             if run.active:
                 run.end(INTERRUPTED, CUT_SHORT.format(run.target, run.loop))
                 run.ended = None  # interrupted, not over: it can be resumed
+        self._rewrite = bool(bad)
         return runs
+
+    def _set_aside(self, problem, then):
+        """Rename the file aside, so the next write keeps what it held for its owner; one warning."""
+        aside = "{}.broken-{}".format(self.path, time.strftime("%Y%m%d-%H%M%S"))
+        try:
+            os.replace(self.path, aside)
+        except OSError as exc:
+            log.warning("the runs kept in %s %s, and it cannot be set aside (%s): %s; the next change "
+                        "overwrites it", self.path, problem, exc.strerror or exc, then)
+            return
+        log.warning("the runs kept in %s %s: set aside as %s (nothing is lost), %s", self.path, problem, aside, then)
 
     def add(self, run):
         """Keep ``run`` as the newest; the oldest beyond :attr:`keep` goes."""

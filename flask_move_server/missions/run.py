@@ -16,6 +16,8 @@ Pure: no rospy, no Flask.
 import datetime
 from dataclasses import dataclass, field
 
+from flask_move_server.missions.route import Route, check_route_name, make_route
+
 RUNNING, PAUSED, STUCK, SUCCEEDED, FAILED, CANCELED, INTERRUPTED, SKIPPED = (
     "running", "paused", "stuck", "succeeded", "failed", "canceled", "interrupted", "skipped")
 STATES = (RUNNING, PAUSED, STUCK, SUCCEEDED, FAILED, CANCELED, INTERRUPTED, SKIPPED)
@@ -122,11 +124,73 @@ class Run:
 
     @classmethod
     def from_dict(cls, data):
-        """A run as the history file kept it; ValueError (or TypeError, KeyError) when it is not one."""
-        run = cls(int(data["id"]), data["route"], [str(w) for w in data["waypoints"]], int(data["loops"]),
-                  float(data["dwell"]), str(data["on_failure"]), str(data["trigger"]), str(data["state"]),
-                  int(data["loop"]), int(data["index"]), list(data["visited"]), list(data["missed"]),
-                  str(data["started"]), data.get("ended"), data.get("message"))
-        if run.state not in STATES or not run.waypoints or not 0 <= run.index < len(run.waypoints):
-            raise ValueError("not a run: state {!r}, index {}".format(run.state, run.index))
+        """A run as the history file kept it, every value checked as the API checks it; ValueError (or
+        TypeError, KeyError) saying what is wrong when it is not one (a hand edit, a file of another version)."""
+        if not isinstance(data, dict):
+            raise ValueError("not an object: {}".format(type(data).__name__))
+        trigger = _one_of(data["trigger"], TRIGGERS, "trigger")
+        route, waypoints = _route_of(data, trigger)
+        run = cls(_whole(data["id"], "id", 1, 2 ** 53), route.name, list(waypoints), route.loops, route.dwell,
+                  route.on_failure, trigger, _one_of(data["state"], STATES, "state"),
+                  _whole(data["loop"], "loop", 1, 2 ** 53), _whole(data["index"], "index", 0, len(waypoints) - 1),
+                  _notes(data["visited"], "visited"), _notes(data["missed"], "missed"),
+                  _text(data["started"], "started", MAX_TIME_TEXT), _text(data.get("ended"), "ended", MAX_TIME_TEXT,
+                                                                        none=True),
+                  _text(data.get("message"), "message", MAX_NOTE_TEXT, none=True))
         return run
+
+
+MAX_TIME_TEXT = 40  # characters of a kept time ("2026-12-01T22:33:28+00:00")
+MAX_NOTE_TEXT = 2000  # characters of a kept message or a note's value (move_base's reasons are shorter)
+MAX_FOREIGN_NAME = 200  # characters of a fleet manager's order id or node id (the VDA 5050 factsheet's)
+MAX_FOREIGN_STOPS = 2000  # stops of a fleet manager's run: its orders are extended, the passed ones forgotten
+
+
+def _route_of(data, trigger):
+    """(the checked Route of a kept run, its stops): the API's checks; a fleet manager's names are its own ids."""
+    fields = {k: data[k] for k in ("loops", "dwell", "on_failure")}
+    if trigger != "vda5050":
+        route = make_route(None, dict(fields, waypoints=data["waypoints"]), scheduled=False)
+        name = data["route"]
+        return Route(None if name is None else check_route_name(name), route.waypoints, route.loops, route.dwell,
+                     route.on_failure), route.waypoints
+    stops = data["waypoints"]
+    if not isinstance(stops, list) or not 1 <= len(stops) <= MAX_FOREIGN_STOPS:
+        raise ValueError("'waypoints' must be a list of 1 to {} node ids".format(MAX_FOREIGN_STOPS))
+    stops = [_text(stop, "a node id", MAX_FOREIGN_NAME) for stop in stops]
+    route = make_route(None, dict(fields, waypoints=["stop"]), scheduled=False)
+    return Route(_text(data["route"], "route", MAX_FOREIGN_NAME + 20), (), route.loops, route.dwell,
+                 route.on_failure), stops
+
+
+def _whole(value, label, low, high):
+    if isinstance(value, bool) or not isinstance(value, int) or not low <= value <= high:
+        raise ValueError("'{}' must be a whole number from {} to {}, got {!r}".format(label, low, high, value))
+    return value
+
+
+def _one_of(value, allowed, label):
+    if value not in allowed:
+        raise ValueError("'{}' must be one of {}, got {!r}".format(label, ", ".join(allowed), value))
+    return value
+
+
+def _text(value, label, longest, none=False):
+    if value is None and none:
+        return None
+    if not isinstance(value, str) or len(value) > longest:
+        raise ValueError("'{}' must be text of at most {} characters".format(label, longest))
+    return value
+
+
+def _notes(value, label):
+    """A kept run's visited or missed stops: the newest :data:`KEPT_STOPS` objects of short plain values."""
+    if not isinstance(value, list):
+        raise ValueError("'{}' must be a list".format(label))
+    notes = value[-KEPT_STOPS:]
+    for note in notes:
+        if not isinstance(note, dict) or len(note) > 8 or not all(
+                isinstance(v, (str, int, float, type(None))) and not isinstance(v, bool) and
+                (not isinstance(v, str) or len(v) <= MAX_NOTE_TEXT) for v in note.values()):
+            raise ValueError("'{}' holds an entry that is not a stop's note".format(label))
+    return list(notes)

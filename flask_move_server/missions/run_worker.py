@@ -24,7 +24,23 @@ class RunWorker:
     """The run executor's worker loop (a mixin: the state and the lock are the executor's)."""
 
     def _drive(self, run):
-        """The worker: one waypoint after the other until the run is through, ended or paused for good."""
+        """The worker: one waypoint after the other until the run is through, ended or paused for good.
+
+        A bug of ours must not leave a run ``running`` with nothing driving it (every new run refused
+        until ``/stop``): it ends the run ``failed``, saying so, and is logged with its traceback."""
+        try:
+            self._drive_on(run)
+        except Exception as exc:
+            log.exception("run %d: its worker failed", run.id)
+            with self._lock:
+                mine = self._run is run
+                if mine:
+                    self._finish(run, FAILED, "The run stopped on an error of the server's ({}: {}); the log has "
+                                              "the details.".format(type(exc).__name__, exc))
+            if mine:
+                self._robot.halt()  # nothing drives a goal it may have sent: the robot stops
+
+    def _drive_on(self, run):
         while True:
             with self._lock:
                 if not self._await_running(run):
