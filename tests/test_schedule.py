@@ -103,6 +103,14 @@ def every_minute(sched, clocks, minutes):
     ("Mon-Fri 09:00", "mon-fri 09:00", range(5)),
     ("sat,sun 10:15", "sat,sun 10:15", (5, 6)),
     ("fri-mon 08:00", "fri-mon 08:00", (4, 5, 6, 0)),
+    # said once each, in the week's order (issue 34: "mon,mon,mon 10:00" was kept as it came)
+    ("mon,mon,mon 10:00", "mon 10:00", (0,)),
+    ("wed,mon-tue 07:00", "mon-wed 07:00", (0, 1, 2)),
+    ("sun,mon 07:00", "sun,mon 07:00", (6, 0)),
+    ("sun,wed,mon,sat 07:00", "wed,sat-mon 07:00", (2, 5, 6, 0)),
+    ("mon-sun 06:00", "06:00", range(7)),
+    ("sat-fri 06:00", "06:00", range(7)),
+    ("tue,thu 18:45", "tue,thu 18:45", (1, 3)),
 ])
 def test_an_entry_reads_as_its_canonical_text_and_days(entry, text, days):
     slot = schedule.parse(entry)
@@ -118,6 +126,9 @@ def test_an_entry_reads_as_its_canonical_text_and_days(entry, text, days):
     ("", "is not a time; write"),
     (5, "each entry is a time as text"),
     ("9" * 1000, "each entry is a time as text"),
+    ("\u0661\u0660:\u0663\u0660", "is not a time"),  # Arabic-Indic digits were taken as 10:30
+    ("\uff11\uff10:\uff13\uff10", "is not a time"),  # full-width digits too
+    ("mon\u200510:30", "is not a time"),  # a Unicode space between the days and the time
 ])
 def test_a_wrong_entry_says_what_a_time_looks_like(entry, says):
     with pytest.raises(BadRoute) as caught:

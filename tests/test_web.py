@@ -234,6 +234,16 @@ def test_every_route_needs_the_token(token_client, robot_config, method, path, b
     assert r.status_code != 401
 
 
+def test_the_scheme_is_any_case_spaces_around_the_token_do_not_count_the_token_itself_is_exact(token_client):
+    """As docs/api.md says (issue 34, item 10): RFC 7235's schemes are case-insensitive; a client
+    adding a space or a newline after the token (an `echo` into a file) is let in; a token that
+    differs in one letter's case is not."""
+    for header in ("bearer s3cret", "BEARER s3cret", "Bearer s3cret ", "Bearer  s3cret"):
+        assert token_client.get("/status", headers={"Authorization": header}).status_code == 200, header
+    for header in ("Bearer S3cret", "Bearer s3cret x", "Bearers3cret", "Bearer"):
+        assert token_client.get("/status", headers={"Authorization": header}).status_code == 401, header
+
+
 def test_health_the_page_and_the_api_description_need_no_token(token_client):
     assert token_client.get("/health").status_code == 200
     assert token_client.get("/").status_code == 200

@@ -12,7 +12,8 @@ from datetime import datetime, time, timedelta
 from flask_move_server.core.errors import BadRoute, shown
 
 DAYS = ("mon", "tue", "wed", "thu", "fri", "sat", "sun")  # datetime.weekday() order
-_ENTRY = re.compile(r"(?:(?P<days>[a-z,\-]+)\s+)?(?P<hour>\d{1,2}):(?P<minute>\d{2})")
+# ASCII digits and spaces only: "\d" would take Arabic-Indic or full-width digits as a time.
+_ENTRY = re.compile(r"(?:(?P<days>[a-z,\-]+)[ \t]+)?(?P<hour>[0-9]{1,2}):(?P<minute>[0-9]{2})", re.ASCII)
 MAX_TEXT = 64
 EXAMPLES = "\"21:30\" (every day), \"mon-fri 09:00\" or \"sat,sun 10:15\" (24-hour clock, the robot's local time)"
 
@@ -36,7 +37,7 @@ def parse(entry):
     if not isinstance(entry, str) or len(entry) > MAX_TEXT:
         raise BadRoute("Field 'schedule': each entry is a time as text, like {}; got {}.".format(
             EXAMPLES, shown(entry)))
-    match = _ENTRY.fullmatch(entry.strip().lower())
+    match = _ENTRY.fullmatch(entry.strip(" \t").lower())
     if match is None:
         raise BadRoute("Field 'schedule': {} is not a time; write {}.".format(shown(entry), EXAMPLES))
     hour, minute = int(match["hour"]), int(match["minute"])
@@ -48,7 +49,10 @@ def parse(entry):
 
 
 def _days(spec, entry):
-    """(weekday numbers, canonical text) of ``mon,wed`` / ``mon-fri`` / ``sat,mon-wed``; all days for None."""
+    """(weekday numbers, canonical text) of ``mon,wed`` / ``mon-fri`` / ``sat,mon-wed``; all days for None.
+
+    The text says each day once, in the week's order, three or more days in a row as a range:
+    ``"mon,mon,mon"`` is ``"mon"``, ``"wed,mon-tue"`` is ``"mon-wed"``, every day is no days at all."""
     if spec is None:
         return frozenset(range(7)), ""
     days = set()
@@ -59,7 +63,27 @@ def _days(spec, entry):
                            "\"sat,sun\").".format(shown(entry), ", ".join(DAYS)))
         a, b = DAYS.index(first), DAYS.index(last or first)
         days.update(range(a, b + 1) if a <= b else list(range(a, 7)) + list(range(0, b + 1)))
-    return frozenset(days), spec
+    return frozenset(days), _days_text(days)
+
+
+def _days_text(days):
+    """The canonical text of a set of weekday numbers ("" for every day); a span over the weekend stays one
+    (``"fri-mon"``), written last."""
+    if len(days) == 7:
+        return ""
+    spans = []
+    for day in sorted(days):
+        if spans and spans[-1][1] == day - 1:
+            spans[-1][1] = day
+        else:
+            spans.append([day, day])
+    if len(spans) > 1 and spans[0][0] == 0 and spans[-1][1] == 6:  # sunday runs on into monday
+        spans[-1][1] = spans.pop(0)[1]
+    parts = []
+    for a, b in spans:
+        run = [(a + i) % 7 for i in range((b - a) % 7 + 1)]
+        parts.append("{}-{}".format(DAYS[a], DAYS[b]) if len(run) >= 3 else ",".join(DAYS[d] for d in run))
+    return ",".join(parts)
 
 
 def next_due(slots, after):
