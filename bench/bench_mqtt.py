@@ -61,7 +61,7 @@ from tests.mqtt_broker import Broker, Listener  # noqa: E402
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from bench_sim import cpu_seconds  # noqa: E402  (a process's CPU from /proc, as bench_sim reads it)
 
-ROOT_TOPIC = "flask-move-server/robot"
+ROOT_TOPIC = "flask-move-server/bench-robot"  # a name of its own: a robot left at "robot" names itself
 GOTO = ROOT_TOPIC + "/goto/set"
 PLACES = ("kitchen", "office")  # config/waypoints.demo.yaml: far apart, so every goal is a new one
 LEAD = 0.5  # s for the stopper's process to start before its first /stop
@@ -96,7 +96,7 @@ class Sim(ServerProcess):
     share a broker); ``extra``: more lines of the ``mqtt:`` section (indented two spaces); ``root``: the
     checkout whose server runs; ``master_uri``: a master already running (else the sim starts its own)."""
 
-    def __init__(self, home, broker=None, name="robot", extra="", root=ROOT, master_uri=None):
+    def __init__(self, home, broker=None, name="bench-robot", extra="", root=ROOT, master_uri=None):
         home.mkdir(parents=True, exist_ok=True)
         waypoints = home / "waypoints.yaml"
         shutil.copy(os.path.join(ROOT, "config", "waypoints.demo.yaml"), str(waypoints))

@@ -41,7 +41,7 @@ from bench_mqtt import GOTO, Sim, Stopper, percentile  # noqa: E402
 from tests.conftest import free_port, start_master, stop_process  # noqa: E402
 from tests.mqtt_broker import Broker, Listener  # noqa: E402
 
-VDA = "uagv/v2/flask-move-server/robot/"
+VDA = "uagv/v2/flask-move-server/bench-robot/"
 VDA_ON = "  vda5050:\n    enabled: true\n"
 FLOOD_SECONDS = 2.0
 STOP_EVERY = 0.2
@@ -49,7 +49,7 @@ STOP_EVERY = 0.2
 
 def header(n):
     return {"headerId": n, "timestamp": "2026-12-01T12:00:00.000Z", "version": "2.0.0",
-            "manufacturer": "flask-move-server", "serialNumber": "robot"}
+            "manufacturer": "flask-move-server", "serialNumber": "bench-robot"}
 
 
 def instant(n, actions):

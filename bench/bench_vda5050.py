@@ -247,8 +247,8 @@ def drive_order(sim, fleet, home, tids, order_id, positions):
     passed = end - start
     cpu = 100.0 * (cpu_seconds(pid) - cpu0) / (time.monotonic() - start)
     threads = thread_shares(pid, tids, threads0, time.monotonic() - start)
-    return (passed, traffic(home, fleet.base, start, end + 0.05), traffic(home, ha_base("robot"), start, end + 0.05),
-            cpu, threads)
+    return (passed, traffic(home, fleet.base, start, end + 0.05),
+            traffic(home, ha_base("bench-robot"), start, end + 0.05), cpu, threads)
 
 
 def drives(sim, fleet, home, origin, rounds):
@@ -324,8 +324,8 @@ def print_drives(results):
 
 def on_the_robot(broker, home, folder, opts, skip):
     """Parts 1 and 3 on one VDA 5050 server: (latency, drives, schema problems of what the robot sent)."""
-    sim = Sim(folder / "sim", broker, "robot", VDA_ON)
-    fleet = fleet_client(broker, "robot")
+    sim = Sim(folder / "sim", broker, "bench-robot", VDA_ON)
+    fleet = fleet_client(broker, "bench-robot")
     watch = None
     try:
         origin = where(fleet.ask_state(lambda s: "agvPosition" in s, message="a state with a position"))

@@ -237,7 +237,10 @@ def stop_waitress(server):
 
 
 class ServerProcess:
-    """``flask-move-server ARGS`` in a child process, its stderr collected as it comes."""
+    """``flask-move-server ARGS`` in a child process, its stderr collected as it comes; ``headers`` (a class
+    or instance attribute set before starting it) go with each get and post (a token)."""
+
+    headers = {}
 
     def __init__(self, *args, env=None, start_timeout=30, cwd=ROOT):
         self.proc = run_cli(*args, env=env, cwd=cwd)  # cwd: the checkout whose server runs (python -m reads it first)
@@ -268,12 +271,12 @@ class ServerProcess:
     def get(self, path, timeout=10):
         import requests
 
-        return requests.get(self.url + path, timeout=timeout)
+        return requests.get(self.url + path, timeout=timeout, headers=self.headers)
 
     def post(self, path, body=None, timeout=10):
         import requests
 
-        return requests.post(self.url + path, json=body, timeout=timeout)
+        return requests.post(self.url + path, json=body, timeout=timeout, headers=self.headers)
 
     def stop(self, sig=None, timeout=10):
         """Send ``sig`` (SIGTERM) and return the exit status."""

@@ -31,12 +31,17 @@ ENTITIES = {  # (component, object) -> name, as Home Assistant shows them
 
 
 class MqttSim(SimServer):
-    """``flask-move-server --sim`` with MQTT on, talking to ``broker``."""
+    """``flask-move-server --sim`` with MQTT on, talking to ``broker``; ``name``: ``mqtt.name`` (None: left
+    out, so the robot names itself); ``top``: more top-level config; ``token``: HTTP's, sent by get and post."""
 
-    def __init__(self, tmp_path, broker, extra=""):
+    def __init__(self, tmp_path, broker, extra="", name="robot", top="", token=None):
         tmp_path.mkdir(parents=True, exist_ok=True)
-        super().__init__(tmp_path, sim_config="mqtt:\n  enabled: true\n  host: 127.0.0.1\n  port: {}\n"
-                                              "  keepalive: 5\n{}".format(broker.port, extra))
+        if token:
+            self.headers = {"Authorization": "Bearer " + token}
+            top += "server:\n  token: {}\n".format(token)
+        named = "  name: {}\n".format(name) if name else ""
+        super().__init__(tmp_path, sim_config="{}mqtt:\n  enabled: true\n  host: 127.0.0.1\n  port: {}\n"
+                                              "  keepalive: 5\n{}{}".format(top, broker.port, named, extra))
         self.port = int(self.url.rsplit(":", 1)[1])
 
     def navigation(self):

@@ -409,6 +409,26 @@ def test_init_position_with_a_long_map_or_node_id_is_refused(sim, fleet, idle):
     assert state["lastNodeId"] != "n" * 5000 and "n" * 300 not in json.dumps(state)
 
 
+@pytest.mark.parametrize("who", [{"serialNumber": "robot-in-the-next-room"}, {"manufacturer": "someone-else"}])
+def test_an_order_or_instant_action_for_another_vehicle_is_refused_and_moves_nothing(sim, fleet, idle, who):
+    """Issue 34, item 6: an order whose header names another serialNumber (a master's mix-up, or a client
+    that should not publish here) was driven."""
+    runs_before = len(sim.get("/runs").json()["runs"])
+    kitchen = [node("r0", 0, position=where(idle)), node("kitchen", 2)]
+    fleet.raw("order", json.dumps(dict(fleet.header(), orderId="not-mine", orderUpdateId=0, nodes=kitchen,
+                                       edges=edges_of(kitchen), **who)))
+    state = fleet.state(lambda s: any("order is addressed to another vehicle" in e["errorDescription"]
+                                      for e in s["errors"]), message="the order for another vehicle refused")
+    assert "validationError" in error_types(state) and state["orderId"] != "not-mine"
+    assert "robot-in-the-next-room" not in json.dumps(state) and "someone-else" not in json.dumps(state)
+    fleet.raw("instantActions", json.dumps(dict(fleet.header(), actions=[
+        {"actionId": "pause-not-mine", "actionType": "startPause", "blockingType": "HARD"}], **who)))
+    state = fleet.state(lambda s: any("instantActions is addressed to another vehicle" in e["errorDescription"]
+                                      for e in s["errors"]), message="the instant action for another vehicle refused")
+    assert not state["paused"] and "pause-not-mine" not in json.dumps(state["actionStates"])
+    _moved_nothing(sim, runs_before)
+
+
 # the owner's commands beside the fleet manager's -------------------------------------------
 
 def test_the_owner_cannot_skip_a_node_of_the_fleet_managers_order(sim, fleet, idle):

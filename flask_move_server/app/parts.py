@@ -114,16 +114,22 @@ class ServerParts:
             return None
         from flask_move_server.mqtt.commands import Commands
         from flask_move_server.mqtt.home_assistant import HomeAssistant, device_info
+        from flask_move_server.mqtt.identity import broker_name
         from flask_move_server.mqtt.link import MqttLink
         from flask_move_server.mqtt.robot_state import RobotState
 
-        name = cfg.mdns.hostname
+        name = broker_name(cfg.mqtt.name, cfg.mdns.hostname)
+        if name != cfg.mdns.hostname and not cfg.mqtt.name:
+            log.info("MQTT: this robot is '%s' on the broker (mdns.hostname is left at '%s', which other robots "
+                     "share; from this machine's id, the same at every start; mqtt.name chooses another)", name,
+                     cfg.mdns.hostname)
         link = MqttLink(cfg.mqtt, name)
         stack.callback(link.close)  # closed after the parts publishing on it: "offline" is the last word
-        url = "http://{}.local:{}/".format(name, self.port)
-        vehicle = self._build_vda5050(stack, link, store) if cfg.mqtt.vda5050.enabled else None
-        home = HomeAssistant(link, cfg.mqtt.home_assistant, name, device_info(name, cfg.mdns.instance or name, url),
-                             store, self.events, vda_connection=vehicle.topic("connection") if vehicle else None)
+        url = "http://{}.local:{}/".format(cfg.mdns.hostname, self.port)
+        vehicle = self._build_vda5050(stack, link, store, name) if cfg.mqtt.vda5050.enabled else None
+        shown_as = cfg.mdns.instance or cfg.mdns.hostname  # Home Assistant's device: the owner's name for it
+        home = HomeAssistant(link, cfg.mqtt.home_assistant, name, device_info(name, shown_as, url), store,
+                             self.events, vda_connection=vehicle.topic("connection") if vehicle else None)
         commands = Commands(link, self.robot, store, self.runs, changed=lambda: state.changed())
         happenings = self.happenings
         state = RobotState(link, self.robot, self.modes, self.runs, self.explorer, self.events,
@@ -133,9 +139,24 @@ class ServerParts:
         for part in (home, state):
             stack.callback(part.start().close)
         app.extensions["flask_move_server"]["mqtt"] = link
+        self._tell_trust(app, link)
         return link.start()
 
-    def _build_vda5050(self, stack, link, store):
+    def _tell_trust(self, app, link):
+        """Who can drive the robot through the broker: a warning at start when HTTP's token does not guard
+        MQTT too, and the doctor's ``mqtt_access`` and ``mqtt_identity`` lines (docs/home-assistant.md)."""
+        from flask_move_server.diagnostics.checks import WARN
+        from flask_move_server.mqtt.trust import access_check, mqtt_checks
+
+        guarded = bool(self.config.resolved_token())
+        check = access_check(self.config.mqtt, guarded)
+        if check.level == WARN:
+            log.warning("MQTT: %s. %s", check.summary, check.advice)
+        doctor = app.extensions["flask_move_server"].get("doctor")
+        if doctor is not None:
+            doctor.add_checks(lambda: mqtt_checks(link, guarded))
+
+    def _build_vda5050(self, stack, link, store, name):
         """The robot as a VDA 5050 vehicle on ``link`` (docs/fleet.md): orders run on the run executor."""
         from flask_move_server.recovery import footprint
         from flask_move_server.sim.dwa import load as planner_limits
@@ -147,7 +168,7 @@ class ServerParts:
         folder = cfg.sim.navigation_config or default_navigation_config()
         factsheet = messages.factsheet(cfg.mdns.hostname, planner_limits(folder), footprint.read_polygon(folder))
         own_map = os.path.splitext(os.path.basename(cfg.sim.map or default_map()))[0] if cfg.sim.enabled else "default"
-        vehicle = Vehicle(link, cfg.mqtt.vda5050, cfg.mdns.hostname, self.robot, self.runs, store, self.modes,
+        vehicle = Vehicle(link, cfg.mqtt.vda5050, name, self.robot, self.runs, store, self.modes,
                           factsheet, own_map=own_map)
         stack.callback(vehicle.start().close)
         return vehicle

@@ -292,6 +292,9 @@ class MqttConfig:
     """One connection to the owner's MQTT broker (off by default: the server needs no broker)."""
 
     enabled: bool = False
+    # The robot's name on the broker (topics, client id, Home Assistant's device); None: mdns.hostname, or
+    # robot-<6 hex of its machine id> when that is left at the default "robot" (two robots must not share one).
+    name: Optional[str] = checked(rules.mqtt_topic_part, default=None)
     host: str = "localhost"
     port: int = checked(rules.tcp_port, default=1883)
     username: Optional[str] = None

@@ -36,6 +36,11 @@ class Doctor:
         self._simulated = simulated
         self._lock = threading.Lock()
         self._running = None
+        self._more = []  # callables giving more checks: parts built after the doctor (MQTT)
+
+    def add_checks(self, checks):
+        """Run ``checks()`` (a list of Check) in every examination too, after the robot's own."""
+        self._more.append(checks)
 
     def examine(self, seconds=None, box=False):
         """The report: overall status, then each check's name, level, summary and advice."""
@@ -66,5 +71,7 @@ class Doctor:
         mode = self._modes.status()["mode"] if self._modes is not None and self._modes.runs_stack else None
         checks = ros_checks(self._observer.observe(seconds, mode), box, self._simulated)
         checks += host.host_checks(host.read(self._maps_folder, self._host_root))
+        for more in self._more:
+            checks += more()
         return {"status": overall(checks), "mode": mode, "window": seconds,
                 "at": time.strftime("%Y-%m-%dT%H:%M:%S%z"), "checks": [c.as_dict() for c in checks]}

@@ -12,6 +12,8 @@
   flood of commands is cut short (dropped and counted) and a slow command never holds paho's loop.
   Retained messages on command topics are ignored (a command left on the broker must not move the
   robot at start-up, as Valetudo rules), and so are payloads over ``MAX_PAYLOAD`` bytes.
+- Identity: the robot listens to its own availability and state, and notices (and outlives) another
+  client publishing there (:mod:`~flask_move_server.mqtt.identity`).
 
 The broker's credentials and ACLs guard the commands (docs/home-assistant.md).
 """
@@ -23,6 +25,7 @@ from collections import Counter
 
 from flask_move_server.core.errors import ConfigError
 from flask_move_server.mqtt import paho_compat
+from flask_move_server.mqtt.identity import IdentityWatch
 from flask_move_server.process.log_limits import Throttled
 
 log = logging.getLogger(__name__)
@@ -53,6 +56,8 @@ class MqttLink:
         self._state = "starting"
         self._threads = []
         self._drops = Throttled(log, "MQTT drop warnings", burst=3, interval=60.0)
+        self.identity = IdentityWatch(robot_name, (self.availability, self.root + "/state"),
+                                      reassert=lambda topic, payload: self.publish(topic, payload, retain=True))
         self._client = make_client("{}-{}".format(TOPIC_ROOT, robot_name), self._on_connect,
                                    self._on_disconnect, self._on_message)
 
@@ -100,6 +105,7 @@ class MqttLink:
 
     def publish(self, topic, payload, retain=False, qos=1):
         """Queue ``payload`` (text) for ``topic``; False when it was dropped. Never blocks."""
+        self.identity.sent(topic, payload, retain)
         try:
             self._outbox.put_nowait((topic, payload, retain, qos))
             return True
@@ -131,6 +137,10 @@ class MqttLink:
     # in ----------------------------------------------------------------------
 
     def _on_message(self, topic, payload, retained):
+        if topic in self.identity.topics:  # our own availability and state: who else speaks as this robot
+            if not self._closing.is_set():
+                self.identity.heard(topic, payload, retained)
+            return
         handler = self._handlers.get(topic)
         if handler is None:
             return
@@ -175,6 +185,9 @@ class MqttLink:
         self._set_state("connected", "MQTT: connected to %s:%d", self.config.host, self.config.port)
         for topic in self._handlers:
             self._client.subscribe(topic, qos=1)
+        for topic in self.identity.topics:
+            self._client.subscribe(topic, qos=0)
+        self.identity.connected()
         self.publish(self.availability, "online", retain=True)
         for owner in self._owners:
             try:
@@ -185,10 +198,13 @@ class MqttLink:
     def _on_disconnect(self, reason):
         self._connected.clear()
         if not self._closing.is_set():
+            self.identity.disconnected()
             self._set_state("disconnected", "MQTT: lost the broker (%s); reconnecting", reason or "closed")
 
     def _set_state(self, state, msg, *args):
-        if state != self._state:  # a broker down for an hour is one line, not one per attempt
+        # A broker down for an hour is one line, not one per attempt; a client id taken again and again
+        # (told once by the identity watch) is not two lines a second.
+        if state != self._state and not self.identity.taken:
             log.log(logging.INFO if state == "connected" else logging.WARNING, msg, *args)
         self._state = state
 
@@ -205,7 +221,7 @@ class MqttLink:
     def status(self):
         """What ``/status`` shows under ``mqtt``: the connection and what was dropped."""
         return {"state": self._state, "broker": "{}:{}".format(self.config.host, self.config.port),
-                "topic_root": self.root, **{k: v for k, v in self.counts.items()
+                "topic_root": self.root, "identity": self.identity.status(), **{k: v for k, v in self.counts.items()
                                             if k in ("dropped_out", "dropped_in", "retained", "too_big")}}
 
     def close(self):

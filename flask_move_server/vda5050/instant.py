@@ -32,9 +32,13 @@ class InstantActions:
                       "stateRequest": lambda action: tell_state() or "Sent.",
                       "factsheetRequest": lambda action: tell_factsheet() or "Sent."}
 
-    def take(self, message):
-        """Each action of ``message`` (parsed JSON), in order; Refusal (validationError) for the message."""
-        for action in _actions(message):
+    def take(self, message, addressed=None):
+        """Each action of ``message`` (parsed JSON), in order; Refusal (validationError) for the message.
+        ``addressed(message)`` refuses one whose header names another vehicle."""
+        actions = _actions(message)
+        if addressed is not None:
+            addressed(message)
+        for action in actions:
             self._act(action)
 
     def _act(self, action):

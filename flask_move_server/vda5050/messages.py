@@ -42,6 +42,10 @@ class Headers:
         self._counters = {}
         self._lock = threading.Lock()
 
+    def identity(self):
+        """(manufacturer, serialNumber): whom a message's header must name to be for this vehicle."""
+        return self._common["manufacturer"], self._common["serialNumber"]
+
     def stamp(self, topic, body):
         """``body`` with the header of the next message on ``topic`` before it."""
         with self._lock:

@@ -92,6 +92,7 @@ class Vehicle:
     def _on_order(self, text):
         try:
             order = check(_parsed(text))
+            self._addressed(order, "order")
             unsupported(order)
             self._driving.take(order)
         except Refusal as refusal:
@@ -100,9 +101,19 @@ class Vehicle:
 
     def _on_instant_actions(self, text):
         try:
-            self._instant.take(_parsed(text))
+            self._instant.take(_parsed(text), addressed=lambda message: self._addressed(message, "instantActions"))
         except Refusal as refusal:
             self._report.refuse(refusal, "instantActions")
+
+    def _addressed(self, message, what):
+        """Refusal (validationError) for a message whose header names another vehicle: a master's mix-up, or a
+        client publishing where it should not; the other's names are not repeated."""
+        ours = self._headers.identity()
+        theirs = (message.get("manufacturer"), message.get("serialNumber"))
+        if theirs != ours:
+            raise Refusal("validationError", "This {} is addressed to another vehicle (its header's manufacturer "
+                          "and serialNumber); this one is {}/{}: nothing was done.".format(what, *ours),
+                          [("serialNumber", ours[1])])
 
     def _too_big(self, topic, size):
         self._report.refuse(Refusal("validationError", "A message of {} bytes on {} is larger than the {} bytes "
