@@ -94,9 +94,10 @@ class Sim(ServerProcess):
 
     ``name``: the robot's (``mdns.hostname``: its MQTT topics and client id, so several servers can
     share a broker); ``extra``: more lines of the ``mqtt:`` section (indented two spaces); ``root``: the
-    checkout whose server runs; ``master_uri``: a master already running (else the sim starts its own)."""
+    checkout whose server runs; ``master_uri``: a master already running (else the sim starts its own);
+    ``env``: more of the server's environment (``PYTHONPATH`` is put after ``root``)."""
 
-    def __init__(self, home, broker=None, name="bench-robot", extra="", root=ROOT, master_uri=None):
+    def __init__(self, home, broker=None, name="bench-robot", extra="", root=ROOT, master_uri=None, env=None):
         home.mkdir(parents=True, exist_ok=True)
         waypoints = home / "waypoints.yaml"
         shutil.copy(os.path.join(ROOT, "config", "waypoints.demo.yaml"), str(waypoints))
@@ -104,8 +105,10 @@ class Sim(ServerProcess):
         config.write_text("mdns:\n  hostname: {}\nmqtt:\n  enabled: {}\n  host: 127.0.0.1\n  port: {}\n{}".format(
             name, "true" if broker else "false", broker.port if broker else 1883, extra))
         self.master_uri = master_uri or "http://127.0.0.1:{}".format(free_port())
-        env = {"ROS_MASTER_URI": self.master_uri, "ROS_HOME": str(home), "ROS_LOG_DIR": str(home / "log"),
-               "ROS_IP": "127.0.0.1", "PYTHONPATH": root}
+        more = dict(env or {})
+        path = os.pathsep.join(p for p in (root, more.pop("PYTHONPATH", "")) if p)
+        env = dict(more, ROS_MASTER_URI=self.master_uri, ROS_HOME=str(home), ROS_LOG_DIR=str(home / "log"),
+                   ROS_IP="127.0.0.1", PYTHONPATH=path)
         super().__init__("--sim", "--config", str(config), "--port", "0", "--no-mdns", "--waypoints", str(waypoints),
                          env=env, start_timeout=60, cwd=root)
         host, port = self.url.rsplit("/", 1)[1].split(":")

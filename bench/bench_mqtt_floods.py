@@ -12,7 +12,9 @@ subscriber here follows each server's ``/odom``). From a paho client here, over 
 - ``instant-limit``: 60 messages of 50 unknown actions whose id and type are at the length the
   factsheet allows (200 characters, 2-byte letters): the largest the robot takes and keeps;
 - ``state-requests``: 10,000 ``stateRequest`` instant actions, one a message;
-- ``goto-unknown``: 10,000 Home Assistant ``goto/set`` of a place that is not there.
+- ``goto-unknown``: 10,000 Home Assistant ``goto/set`` of a place that is not there;
+- ``state-fake``: 10,000 messages on the robot's own ``state`` topic from another client (the robot
+  listens there since issue 34, item 3, to notice someone speaking as it).
 
 Over the whole window a process of its own POSTs ``/stop`` every 0.2 s (bench_mqtt's ``Stopper``),
 the worst gap between two ``/odom`` messages is taken, and a paho client counts the bytes of
@@ -76,6 +78,8 @@ FLOODS = {  # name: (what the table says, the topic, the payload of message n, h
                       at_the_limit, 60),
     "state-requests": ("10,000 stateRequest instant actions", VDA + "instantActions", state_request, 10000),
     "goto-unknown": ("10,000 goto/set of an unknown place", GOTO, lambda n: "nowhere-{}".format(n), 10000),
+    "state-fake": ("10,000 fake states on the robot's own state topic", GOTO.rsplit("/", 2)[0] + "/state",
+                   lambda n: json.dumps({"status": "driving", "target": "front door", "n": n}), 10000),
 }
 
 

@@ -100,3 +100,33 @@ def test_the_panel_at_other_sizes(sim, browser, device, name):
     page.wait_for_function("document.querySelectorAll('#health li').length >= 10", timeout=15000)
     screenshot(page, name)
     assert page.errors == []
+
+
+def test_a_broker_the_token_does_not_guard_is_told_on_the_phone(tmp_path_factory, browser):
+    """Issue 34, item 6: HTTP needs the token, the broker takes the robot anonymously; the owner's Health
+    panel says anyone on the broker can drive it, and what to do (screenshot phone-health-mqtt)."""
+    from tests.mqtt_broker import Broker
+
+    folder = tmp_path_factory.mktemp("page_health_mqtt")
+    (folder / "broker").mkdir()
+    broker = Broker(folder / "broker")
+    sim = PageSim(folder, token="s3cret-token", extra_config="mqtt:\n  enabled: true\n  host: 127.0.0.1\n"
+                                                              "  port: {}\n".format(broker.port))
+    try:
+        wait_for(lambda: sim.status()["mqtt"]["state"] == "connected", message="the robot on the broker")
+        page = browser.open(sim.url + "/", answers=["s3cret-token"])
+        live(page)
+        page.locator("#tabs button[data-tab=health]").click()
+        page.locator("#health-check").tap()
+        page.wait_for_selector("#health li[data-name=mqtt_access]", timeout=15000)
+        row = page.locator("#health li[data-name=mqtt_access]")
+        assert row.get_attribute("data-level") == "warn" and row.locator("strong").inner_text() == "MQTT access"
+        assert "anyone who may publish on this robot's topics can drive it" in row.inner_text()
+        assert "docs/home-assistant.md" in row.inner_text()
+        assert level(page, "mqtt_identity") == "pass"
+        row.scroll_into_view_if_needed()
+        screenshot(page, "phone-health-mqtt")
+        assert page.errors == []
+    finally:
+        sim.close()
+        broker.stop()

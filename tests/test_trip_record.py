@@ -2,6 +2,8 @@
 
 import json
 
+import pytest
+
 from flask_move_server.core.geometry import Goal, Pose2D
 from flask_move_server.core.trip_record import TripRecord
 from tests.conftest import wait_for
@@ -48,3 +50,23 @@ def test_a_trip_to_a_pose_names_the_pose_and_a_broken_note_is_ignored(tmp_path):
     third = TripRecord(str(path))
     assert third.left_over() is None
     third.close()
+
+
+
+@pytest.mark.parametrize("note, told", [
+    ({"goal": {"x": "a", "y": 1}}, "The trip to a goal was"),  # crashed the server's start: "{:.1f}" of text
+    ({"goal": [1, 2]}, "The trip to a goal was"),  # crashed it too: a list has no .get
+    ({"goal": {"x": 1e308, "y": 0}}, "The trip to a goal was"),
+    ({"target": "x" * 3000, "goal": {"x": 1.0, "y": 2.0}}, "The trip to x 1.0, y 2.0 was"),
+    ({"target": "a\\nb\u202e", "goal": None}, "The trip to a goal was"),
+    ({"target": 5}, "The trip to a goal was"),
+])
+def test_a_hand_edited_note_is_checked_as_the_api_checks_a_goal(tmp_path, note, told):
+    """Issue 34: every value read from a state file passes the API's checks."""
+    path = tmp_path / "trip.json"
+    path.write_text(json.dumps(note))
+    record = TripRecord(str(path))
+    try:
+        assert record.left_over().startswith(told)
+    finally:
+        record.close()

@@ -12,7 +12,10 @@ never in the request that sends the goal: ``/goto`` answers in a millisecond. Pu
 
 import json
 import logging
+import math
 
+from flask_move_server.core import names
+from flask_move_server.core.errors import BadRequest
 from flask_move_server.core.state_writer import StateWriter
 
 log = logging.getLogger(__name__)
@@ -41,11 +44,7 @@ class TripRecord:
         self._writer.remove()
         if not isinstance(data, dict):
             return None
-        where = data.get("target")
-        goal = data.get("goal") or {}
-        if not isinstance(where, str):
-            where = "x {:.1f}, y {:.1f}".format(goal.get("x", 0.0), goal.get("y", 0.0)) if goal else "a goal"
-        return INTERRUPTED.format(where)
+        return INTERRUPTED.format(_where(data))
 
     def started(self, goal):
         self._writer.write(json.dumps({"target": goal.target, "goal": goal.pose.as_dict()}) + "\n")
@@ -56,3 +55,25 @@ class TripRecord:
     def close(self):
         """Write what is pending, then stop the thread."""
         self._writer.close()
+
+
+POSITION_LIMIT = 1e6  # m: as the API bounds a pose (waypoints.POSITION_LIMIT)
+
+
+def _where(data):
+    """Where the kept trip went, in words, from values checked as the API checks them (a hand edit or a
+    file of another version may hold anything): the place's name, else its position, else "a goal"."""
+    target = data.get("target")
+    try:
+        return names.checked(target, "place", BadRequest) if target is not None else _position(data.get("goal"))
+    except BadRequest:
+        return _position(data.get("goal"))
+
+
+def _position(goal):
+    if isinstance(goal, dict):
+        x, y = goal.get("x"), goal.get("y")
+        if all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) and
+               abs(v) <= POSITION_LIMIT for v in (x, y)):
+            return "x {:.1f}, y {:.1f}".format(x, y)
+    return "a goal"

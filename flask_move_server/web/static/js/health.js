@@ -8,6 +8,7 @@ const NAMES = {
   scan: "Lidar", scan_range: "Lidar range", tf: "Frames (tf)", odom: "Odometry", move_base: "Planner",
   amcl: "Localization", localization: "Where am I", scan_match: "Laser on the map", laser_yaw: "Lidar direction", power: "Power",
   temperature: "Temperature", load: "CPU load", disk: "Disk", clock: "Clock", ros: "ROS",
+  mqtt_access: "MQTT access", mqtt_identity: "MQTT name",
 };
 let running = false;
 
