@@ -31,6 +31,7 @@ sys.path.insert(0, ROOT)
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
 from bench_mqtt import Sim  # noqa: E402
+from bench_mqtt_floods import rss_mb  # noqa: E402
 
 from tests.conftest import stop_process, wait_for  # noqa: E402
 from tests.mqtt_broker import Broker, Listener  # noqa: E402
@@ -104,13 +105,7 @@ class Clients:
 
 def memory(pid):
     """(VmRSS, VmHWM) of ``pid`` in MB."""
-    fields = {}
-    with open("/proc/{}/status".format(pid)) as f:
-        for line in f:
-            key, _, value = line.partition(":")
-            if key in ("VmRSS", "VmHWM"):
-                fields[key] = int(value.split()[0]) / 1024
-    return fields["VmRSS"], fields["VmHWM"]
+    return rss_mb(pid), rss_mb(pid, "VmHWM:")
 
 
 def snapshot(folder, stem):

@@ -122,6 +122,14 @@ def live(page, timeout=20000):
     page.wait_for_function("['live', 'polling'].includes(document.body.dataset.connection)", timeout=timeout)
 
 
+def on_the_map(browser, sim):
+    """The page at ``sim``, live, with its map drawn: where most page tests start."""
+    page = browser.open(sim.url + "/")
+    live(page)
+    page.wait_for_function("document.getElementById('map').dataset.imageRect")
+    return page
+
+
 def robot_px(page):
     """Where the page draws the robot: CSS pixels inside the map canvas, or None."""
     value = page.get_attribute("#map", "data-robot-px")

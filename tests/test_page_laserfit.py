@@ -14,7 +14,7 @@ import pytest
 pytest.importorskip("playwright", reason="playwright is not installed (pip install -e '.[test]'; Debian lacks it)")
 
 from tests.conftest import wait_for  # noqa: E402
-from tests.page_browser import Finger, PageSim, live, screenshot  # noqa: E402
+from tests.page_browser import Finger, PageSim, on_the_map, screenshot  # noqa: E402
 from tests.test_page import Screen, on_page  # noqa: E402
 
 WARNED = "!document.getElementById('laserfit').hidden"
@@ -30,9 +30,7 @@ def sim(tmp_path_factory):
 
 @pytest.fixture(scope="module")
 def page(sim, browser):
-    page = browser.open(sim.url + "/")
-    live(page)
-    page.wait_for_function("document.getElementById('map').dataset.imageRect")
+    page = on_the_map(browser, sim)
     yield page
     assert page.errors == []
 

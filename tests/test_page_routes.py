@@ -16,7 +16,7 @@ import pytest
 pytest.importorskip("playwright", reason="playwright is not installed (pip install -e '.[test]'; Debian lacks it)")
 
 from tests.conftest import wait_for  # noqa: E402
-from tests.page_browser import DESKTOP, PageSim, live, screenshot  # noqa: E402
+from tests.page_browser import DESKTOP, PageSim, live, on_the_map, screenshot  # noqa: E402
 
 API_WORDS = ("POST ", "GET /", "PUT /", "robotctl", "curl", "Field '")
 LANDSCAPE = {"viewport": {"width": 844, "height": 390}, "has_touch": True, "is_mobile": True,
@@ -33,9 +33,7 @@ def sim(tmp_path_factory):
 
 @pytest.fixture(scope="module")
 def page(sim, browser):
-    page = browser.open(sim.url + "/")
-    live(page)
-    page.wait_for_function("document.getElementById('map').dataset.imageRect")
+    page = on_the_map(browser, sim)
     page.locator("#tabs button[data-tab=routes]").tap()
     yield page
     assert page.errors == []

@@ -13,7 +13,7 @@ import pytest
 pytest.importorskip("playwright")
 
 from tests.conftest import wait_for  # noqa: E402
-from tests.page_browser import DESKTOP, PageSim, live, screenshot  # noqa: E402
+from tests.page_browser import DESKTOP, PageSim, live, on_the_map, screenshot  # noqa: E402
 
 LANDSCAPE = {"viewport": {"width": 844, "height": 390}, "has_touch": True, "is_mobile": True,
              "device_scale_factor": 1}
@@ -28,9 +28,7 @@ def sim(tmp_path_factory):
 
 @pytest.fixture(scope="module")
 def page(sim, browser):
-    page = browser.open(sim.url + "/")
-    live(page)
-    page.wait_for_function("document.getElementById('map').dataset.imageRect")
+    page = on_the_map(browser, sim)
     yield page
     assert page.errors == []
 
