@@ -117,14 +117,15 @@ def snapshot(folder, stem):
     return tracemalloc.Snapshot.load(str(path))
 
 
-def soak(folder, broker, counts, traced):
-    """[(requests, RSS, HWM, traced MB or None, snapshot or None)] at each of ``counts``."""
+def soak(folder, broker, counts, traced, root=ROOT):
+    """[(requests, RSS, HWM, traced MB or None, snapshot or None)] at each of ``counts``, the server of
+    checkout ``root``."""
     env = {}
     snaps = folder / "snapshots"
     if traced:
         snaps.mkdir(parents=True)
         env = {"PYTHONPATH": PROBE, "SOAK_SNAPSHOTS": str(snaps), "SOAK_FRAMES": "1"}
-    sim = Sim(folder / "sim", broker, extra=VDA_ON, env=env)
+    sim = Sim(folder / "sim", broker, extra=VDA_ON, env=env, root=root)
     listener = Listener(broker)
     streams = [Stream(sim.url) for _ in range(STREAMS)]
     clients = Clients(sim)
@@ -151,13 +152,22 @@ def soak(folder, broker, counts, traced):
 
 
 def print_tables(plain, traced, top):
-    print("| requests | RSS (MB) | peak RSS (MB) | RSS, tracemalloc on (MB) | Python traced (MB) |")
-    print("|---:|---:|---:|---:|---:|")
-    for (count, rss, hwm, _, _), (_, rss_t, _, total, _) in zip(plain, traced):
-        print("| {:,} | {:.1f} | {:.1f} | {:.1f} | {:.2f} |".format(count, rss, hwm, rss_t, total))
-    first, last = traced[1][4], traced[-1][4]  # from the first checkpoint past the warm-up
+    """``plain``: [(checkout, rows)]; ``traced``: this checkout's rows with tracemalloc on, or None."""
+    print("| server | requests | RSS (MB) | peak RSS (MB) |")
+    print("|---|---:|---:|---:|")
+    for name, rows in plain:
+        for count, rss, hwm, _, _ in rows:
+            print("| {} | {:,} | {:.1f} | {:.1f} |".format(name, count, rss, hwm))
+    if not traced:
+        return
+    print("\nThis checkout with tracemalloc on (its RSS is higher by what tracemalloc keeps):\n")
+    print("| requests | RSS (MB) | Python traced (MB) |")
+    print("|---:|---:|---:|")
+    for count, rss, _, total, _ in traced:
+        print("| {:,} | {:.1f} | {:.2f} |".format(count, rss, total))
+    first, last = traced[min(1, len(traced) - 1)][4], traced[-1][4]  # from the first checkpoint past the warm-up
     print("\nThe source lines whose traced memory grew most from {:,} to {:,} requests:\n".format(
-        traced[1][0], traced[-1][0]))
+        traced[min(1, len(traced) - 1)][0], traced[-1][0]))
     print("| line | grew (KB) | now (KB) | blocks now |")
     print("|---|---:|---:|---:|")
     for stat in last.compare_to(first, "lineno")[:top]:
@@ -179,6 +189,8 @@ def main(argv=None):
     parser.add_argument("--checkpoints", default="30000,150000", help="request counts to measure at too")
     parser.add_argument("--warmup", type=int, default=2000, help="requests before the first measurement")
     parser.add_argument("--top", type=int, default=8)
+    parser.add_argument("--compare", action="append", default=[], help="another checkout's server, RSS only")
+    parser.add_argument("--no-traced", action="store_true", help="skip the pass with tracemalloc")
     args = parser.parse_args(argv)
     counts = sorted({args.warmup, args.requests, *(int(c) for c in args.checkpoints.split(",") if c)})
     counts = [c for c in counts if c <= args.requests]
@@ -187,10 +199,15 @@ def main(argv=None):
         (folder / "broker").mkdir()
         broker = Broker(folder / "broker")
         try:
-            print("the server as it runs", file=sys.stderr)
-            plain = soak(folder / "plain", broker, counts, traced=False)
-            print("the server with tracemalloc on", file=sys.stderr)
-            traced = soak(folder / "traced", broker, counts, traced=True)
+            plain = []
+            for root in [ROOT] + [os.path.abspath(d) for d in args.compare]:
+                name = "this checkout" if root == ROOT else os.path.basename(root)
+                print("{}: the server as it runs".format(name), file=sys.stderr)
+                plain.append((name, soak(folder / "plain-{}".format(len(plain)), broker, counts, False, root)))
+            traced = None
+            if not args.no_traced:
+                print("the server with tracemalloc on", file=sys.stderr)
+                traced = soak(folder / "traced", broker, counts, traced=True)
         finally:
             broker.stop()
     print_tables(plain, traced, args.top)

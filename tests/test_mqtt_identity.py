@@ -75,7 +75,9 @@ def test_without_a_machine_id_the_default_stays_and_the_log_says_how_to_choose(t
 # someone else speaking as the robot --------------------------------------------------------------
 
 
-def test_a_fake_state_or_a_retained_offline_from_another_client_is_noticed_and_outlived(broker, stranger):
+def test_a_fake_state_or_a_retained_offline_from_another_client_is_noticed_and_outlived(broker, stranger,
+                                                                                        monkeypatch):
+    monkeypatch.setattr(identity, "WILL_WINDOW", 0.0)  # the stranger's "offline" comes right after the connect
     link = link_on(broker, "robot-fake")
     root = "flask-move-server/robot-fake"
     try:
@@ -111,6 +113,24 @@ def test_what_the_broker_kept_of_the_robot_s_last_life_is_not_someone_else(broke
         assert second.status()["identity"]["foreign_messages"] == 0
     finally:
         second.close()
+
+
+def test_the_will_of_the_robot_s_own_connection_just_after_it_reconnected_is_its_own():
+    now = [100.0]
+    published = []
+    watch = identity.IdentityWatch("robot-x", ("flask-move-server/robot-x/availability",
+                                               "flask-move-server/robot-x/state"),
+                                   reassert=lambda topic, payload: published.append((topic, payload)),
+                                   clock=lambda: now[0])
+    watch.connected()
+    watch.sent("flask-move-server/robot-x/availability", "online", retain=True)
+    now[0] += 0.5  # the broker ends the old connection it took over, and publishes its will
+    watch.heard("flask-move-server/robot-x/availability", b"offline", retained=False)
+    assert watch.status()["state"] == "own" and watch.status()["foreign_messages"] == 0
+    assert published == [("flask-move-server/robot-x/availability", "online")]
+    now[0] += identity.WILL_WINDOW  # later, an "offline" is someone else's
+    watch.heard("flask-move-server/robot-x/availability", b"offline", retained=False)
+    assert watch.status()["state"] == "shared" and watch.status()["foreign_messages"] == 1
 
 
 def test_two_robots_of_one_name_see_each_other_and_say_it_once(broker, caplog):

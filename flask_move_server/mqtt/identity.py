@@ -33,6 +33,7 @@ MACHINE_ID_FILES = ("/etc/machine-id", "/var/lib/dbus/machine-id")
 REMEMBERED = 32  # payloads of our own kept per topic: the echo of each arrives within a moment
 REASSERT = 5.0  # s: our own retained messages published again at most this often per topic
 QUIET = 120.0  # s without a foreign message before the identity is told as the robot's own again
+WILL_WINDOW = 2.0  # s after a connect in which an "offline" is the will of our own connection a takeover ended
 KNOCKED_OFF = 10.0  # s: a connection the broker ends sooner than this after the connect was "knocked off"
 KNOCKS = 3  # knock-offs in a row before a second client with this client id is told
 
@@ -70,6 +71,7 @@ class IdentityWatch:
     own topics (:meth:`heard`); ``reassert(topic, payload)`` publishes one of ours again, retained."""
 
     def __init__(self, name, topics, reassert, clock=time.monotonic):
+        """``topics``: the availability topic first, then the state's."""
         self.name = name
         self.topics = tuple(topics)
         self._reassert, self._clock = reassert, clock
@@ -94,22 +96,38 @@ class IdentityWatch:
         if retained:
             return  # the broker's memory of our last life: what we publish on connecting replaces it
         with self._lock:
-            if _digest(payload) in self._ours[topic]:
-                return
-            now = self._clock()
-            if self._foreign_at is None or now - self._foreign_at > QUIET:
-                self._first_at = time.time()
-            self._foreign, self._foreign_at = self._foreign + 1, now
-            again = self._last.get(topic) if now - self._reasserted.get(topic, -REASSERT) >= REASSERT else None
-            if again is not None:
-                self._reasserted[topic] = now
-        self._warnings.log(logging.WARNING, "MQTT: another client published on %s, this robot's own topic (a second "
-                           "robot named '%s' on this broker, or someone faking it); %s. Give each robot a name of its "
-                           "own (mqtt.name) and the broker a user per robot (docs/home-assistant.md)", topic,
-                           self.name, "this robot's own message published again" if again is not None else
-                           "its own is published again within {:g} s".format(REASSERT))
+            again, foreign = self._judge(topic, payload)
+        if foreign:
+            self._warnings.log(logging.WARNING, "MQTT: another client published on %s, this robot's own topic (a "
+                               "second robot named '%s' on this broker, or someone faking it); %s. Give each robot "
+                               "a name of its own (mqtt.name) and the broker a user per robot "
+                               "(docs/home-assistant.md)", topic, self.name,
+                               "this robot's own message published again" if again is not None else
+                               "its own is published again within {:g} s".format(REASSERT))
         if again is not None:
             self._reassert(topic, again)
+
+    def _judge(self, topic, payload):
+        """Lock held: (our own message to publish again, or None; whether ``payload`` was someone else's)."""
+        if _digest(payload) in self._ours[topic]:
+            return None, False
+        now = self._clock()
+        if self._our_last_will(topic, payload, now):
+            self._reasserted[topic] = now
+            return self._last.get(topic), False
+        if self._foreign_at is None or now - self._foreign_at > QUIET:
+            self._first_at = time.time()
+        self._foreign, self._foreign_at = self._foreign + 1, now
+        if now - self._reasserted.get(topic, -REASSERT) < REASSERT:
+            return None, True
+        self._reasserted[topic] = now
+        return self._last.get(topic), True
+
+    def _our_last_will(self, topic, payload, now):
+        """An ``offline`` on our availability just after we connected: the broker publishes the will of our
+        own connection that died (a takeover on reconnecting), not someone else's."""
+        return (topic == self.topics[0] and payload == b"offline" and self._connected_at is not None and
+                now - self._connected_at < WILL_WINDOW)
 
     def connected(self):
         self._connected_at = self._clock()
