@@ -63,7 +63,11 @@ BENCHMARKS = [
     ("scan", "bench_scan.py", ["--seconds", "4", "--repeat", "500"], ["--seconds", "0.5", "--repeat", "5"]),
     ("webhooks", "bench_webhooks.py", ["--seconds", "10"], ["--seconds", "1"]),
     ("mqtt_floods", "bench_mqtt_floods.py", ["--window", "10"],
-     ["--window", "1", "--only", "instant-long,goto-unknown"]),
+     ["--window", "1", "--only", "instant-long,goto-unknown,state-fake"]),
+    ("map_file", "bench_map_file.py", ["--repeat", "1", "--served", "--window", "10"],
+     ["--repeat", "1", "--served", "--window", "1"]),
+    ("soak", "bench_soak.py", ["--requests", "20000", "--checkpoints", "5000"],
+     ["--requests", "600", "--checkpoints", "300", "--warmup", "100"]),
 ]
 # A markdown table's separator line: what every benchmark prints under its header row.
 TABLE_RULE = re.compile(r"^\|\s*:?-{3}")

@@ -191,6 +191,7 @@ def main(argv=None):
     parser.add_argument("--top", type=int, default=8)
     parser.add_argument("--compare", action="append", default=[], help="another checkout's server, RSS only")
     parser.add_argument("--no-traced", action="store_true", help="skip the pass with tracemalloc")
+    parser.add_argument("--traced-only", action="store_true", help="only the pass with tracemalloc")
     args = parser.parse_args(argv)
     counts = sorted({args.warmup, args.requests, *(int(c) for c in args.checkpoints.split(",") if c)})
     counts = [c for c in counts if c <= args.requests]
@@ -200,7 +201,7 @@ def main(argv=None):
         broker = Broker(folder / "broker")
         try:
             plain = []
-            for root in [ROOT] + [os.path.abspath(d) for d in args.compare]:
+            for root in [] if args.traced_only else [ROOT] + [os.path.abspath(d) for d in args.compare]:
                 name = "this checkout" if root == ROOT else os.path.basename(root)
                 print("{}: the server as it runs".format(name), file=sys.stderr)
                 plain.append((name, soak(folder / "plain-{}".format(len(plain)), broker, counts, False, root)))
