@@ -33,7 +33,7 @@ class Fleet(Listener):
 
     def header(self):
         return {"headerId": next(self._ids), "timestamp": "2026-11-27T17:00:00.00Z", "version": "2.0.0",
-                "manufacturer": "flask-move-server", "serialNumber": "robot"}
+                "manufacturer": self.base.split("/")[2], "serialNumber": self.base.split("/")[3]}  # the topic's
 
     def send_order(self, order_id, nodes, edges, update=0):
         message = dict(self.header(), orderId=order_id, orderUpdateId=update, nodes=nodes, edges=edges)
