@@ -128,7 +128,16 @@ class Server(ServerParts):
         os.kill(os.getpid(), signal.SIGTERM)
 
     def close(self):
-        """Close every part in reverse order of start. Idempotent."""
+        """Close every part in reverse order of start. Idempotent.
+
+        With the master gone, the ROS node goes first: a topic that was registering with it holds
+        rospy's lock until rospy shuts down, and the parts' unregistering would wait on it for ever.
+        """
+        from flask_move_server.ros.node import LOST
+
+        node = getattr(self, "_node", None)
+        if node is not None and node.state == LOST:
+            node.close()
         self._stack.close()
 
 

@@ -194,6 +194,7 @@ class RosNode:
             self.name = rospy.get_name()
             return
         rospy.init_node(self.name, disable_signals=True)
+        rospy.on_shutdown(_end_registration_retries)
         # actionlib's errors about a goal already ended come in goal storms, one per goal: throttled
         logging.getLogger("rosout").addFilter(ThrottleFilter(ACTIONLIB_STORM_LINES))
         self.name = rospy.get_name()
@@ -280,3 +281,17 @@ def _resolved_node_name(name):
     if name.startswith("/"):
         return name
     return rosgraph.names.ns_join(rosgraph.names.get_ros_namespace(argv=sys.argv), name)
+
+
+def _end_registration_retries():
+    """rospy's first shutdown hook: raise its shutdown flag before rospy's own clean-up runs.
+
+    A topic registered while the master is gone retries inside rospy, holding the topic manager's
+    lock, until ``rospy.is_shutdown()``; rospy's clean-up (a pre-shutdown hook, run before it raises
+    that flag) waits for the same lock, so the process never ended (rospy 1.15 to 1.17:
+    ``registration.py`` ``reg_added`` against ``topics.py`` ``close_all``). Raised here, the retry
+    ends within its 0.2 s sleep and the clean-up goes on; nothing after this publishes.
+    """
+    import rospy.core
+
+    rospy.core._shutdown_flag = True
