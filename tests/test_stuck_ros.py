@@ -142,6 +142,26 @@ def test_pushed_by_the_joystick_it_says_so_stops_and_is_free_once_it_moves(stuck
     assert stuck_state(robot) == "free"  # the laser saw it move: free again
 
 
+def test_a_push_on_its_way_as_the_robot_is_found_pressed_is_stopped_and_refused(stuck):
+    robot, world, recovery, _, told = stuck
+    world.blocked = lambda linear: False
+    wait_for(lambda: robot.teleop(0.2, 0.0) and recovery.sensing.came() == 1, timeout=5,
+             message="the watch seeing it drive forward")
+    command = robot.teleop_control.command
+
+    def found_pressed_meanwhile(linear, angular, **options):
+        recovery.blocked()  # the watch says so after this push passed the check, before it reached the motors
+        return command(linear, angular, **options)
+
+    robot.teleop_control.command = found_pressed_meanwhile
+    try:
+        with pytest.raises(Pressed):
+            robot.teleop(0.2, 0.0)
+    finally:
+        robot.teleop_control.command = command
+    assert stuck_state(robot) == "stuck" and not robot.status()["teleop"]["active"]  # it does not drive on
+
+
 def test_asked_to_back_out_it_backs_out_slowly_and_waits_and_a_free_robot_says_it_is_not_stuck(stuck):
     robot, world, recovery, relocalize, told = stuck
     with pytest.raises(NotStuck):

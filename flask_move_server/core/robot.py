@@ -7,7 +7,7 @@ both and zeroes the velocity, the teleop deadman halts the motors at once, the
 e-stop latch stops everything and refuses goals and teleop until released).
 """
 
-from flask_move_server.core.errors import NavigationFailed, NavigationUnavailable, NotStuck, ShuttingDown
+from flask_move_server.core.errors import NavigationFailed, NavigationUnavailable, NotStuck, Pressed, ShuttingDown
 from flask_move_server.drive.estop import EStop
 
 _SHUTTING_DOWN = "The server is shutting down: the robot was stopped. Send the command again once it is back."
@@ -173,7 +173,18 @@ class Robot:
             self.navigator.cancel()
             result["canceled_goal"] = True
         self._unless_latched_meanwhile()
+        self._unless_pressed_meanwhile(linear)
         return result
+
+    def _unless_pressed_meanwhile(self, linear):
+        """Found pressed against something while this push was on its way: it ends too, and is refused."""
+        if self.recovery is None:
+            return
+        try:
+            self.recovery.check_push(linear)
+        except Pressed:
+            self.teleop_control.stop()
+            raise
 
     def _unless_latched_meanwhile(self):
         """An e-stop or a shutdown came while a goal or command was on its way: stop that one too, and refuse."""

@@ -82,10 +82,11 @@ class Recovery(WayOut):
                 "waiting": self._state == STUCK and not self._nav.holding(self._seq),
                 "count": self.count, "freed": self.freed}
 
-    def _change(self, state, message=None, where=None, seq=None, when=None, freed=False, pressed=None):
+    def _change(self, state, message=None, where=None, seq=None, when=None, freed=False, pressed=None, then=None):
         """A new state, told as a ``stuck`` event (outside the state's lock: a listener may ask for the
         status); only when ``when()`` holds, if given (under the lock). True when changed. ``pressed``: the
-        way (+1 ahead, -1 behind) the joystick pushed it against something, kept until the state changes."""
+        way (+1 ahead, -1 behind) the joystick pushed it against something, kept until the state changes;
+        ``then()``, if given, runs once the state changed, before it is told."""
         with self._telling:
             with self._lock:
                 if when is not None and not when():
@@ -99,6 +100,8 @@ class Recovery(WayOut):
                 self._where = where if state != FREE else None
                 self._since = self._since if state != FREE else None
                 told = self._status()
+            if then is not None:
+                then()
             if self._events is not None:
                 self._events.publish("stuck", told)
         return True
@@ -139,9 +142,11 @@ class Recovery(WayOut):
             return
         if not self._robot.teleop_control.status()["active"]:
             return  # nobody drives it now (a goal that just ended): nothing to say
-        self._robot.teleop_control.stop()  # the motors strain against a wall: stop commanding
+        stop = self._robot.teleop_control.stop
+        stop()  # the motors strain against a wall: stop commanding
         way = self.sensing.came() if self.sensing is not None else None
-        if self._change(STUCK, words.pressed(where), where, when=lambda: self._state == FREE, pressed=way):
+        # stopped again once said: a push that passed check_push before, and came meanwhile, ends too
+        if self._change(STUCK, words.pressed(where), where, when=lambda: self._state == FREE, pressed=way, then=stop):
             log.warning("stuck %s: pressed against something while driven by joystick", where)
             self._later(self._put_back, SETTLE)
 
