@@ -346,3 +346,35 @@ def test_a_frontier_goal_that_ends_stuck_ends_the_exploration_stuck_with_the_rob
     end = x.current()
     assert end["state"] == "stuck" and "It said: " + said in end["message"], end
     assert maps.saved == [] and modes.switches == ["mapping"] and len(robot.goals) == 1
+
+
+def _mapping_on_disk(tmp_path, text):
+    """Maps whose served store is the real marks file of the map being made, holding ``text``."""
+    from flask_move_server.waypoints.store import WaypointStore
+
+    path = tmp_path / "mapping.waypoints.yaml"
+    path.write_text(text, encoding="utf-8")
+    maps = Maps(grid(CLOSED))
+    maps.store = maps.marks = WaypointStore(str(path))
+    return maps
+
+
+def test_a_map_explored_without_a_dock_gets_one_where_it_started(tmp_path):
+    maps = _mapping_on_disk(tmp_path, "waypoints:\n  Küche: [0.5, 0.5, 0.0]\n")
+    x = explorer(Robot([("succeeded", None)]), maps)
+    x.start("flat")
+    assert ended(x)["state"] == "done"
+    dock = maps.store.dock()
+    assert (dock.name, dock.x, dock.y) == ("dock", 1.8, 0.55)  # where the robot stood as it began
+    assert "dock: dock" in (tmp_path / "mapping.waypoints.yaml").read_text()  # given to the map on saving
+
+
+def test_exploring_comes_home_to_the_dock_marked_in_the_owners_words_and_keeps_it(tmp_path):
+    maps = _mapping_on_disk(tmp_path, "waypoints:\n  Ladestation: [0.3, 0.4, 1.0]\ndock: Ladestation\n")
+    robot = Robot([("succeeded", None)])
+    x = explorer(robot, maps)
+    x.start("flat")
+    assert ended(x)["state"] == "done"
+    home = robot.goals[-1]
+    assert (home.pose.x, home.pose.y, home.target) == (0.3, 0.4, "Ladestation")
+    assert [w.name for w in maps.store.all()] == ["Ladestation"]  # no second dock added

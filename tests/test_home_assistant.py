@@ -149,6 +149,28 @@ def test_a_refused_command_says_why_and_moves_nothing(sim, home):
     assert "No run" in refused["message"]
 
 
+def test_dock_goes_to_the_charger_by_the_owners_name_and_without_one_says_so(sim, home):
+    charger = "Ladestelle Küche"
+    dock = sim.get("/waypoints/dock").json()
+    put = dict(dock, dock=True)
+    del put["name"]
+    assert requests.put(sim.url + "/waypoints/" + charger, json=put, timeout=10).status_code == 201
+    try:
+        home.send(ROOT_TOPIC + "/dock/press", "PRESS")
+        home.wait_json(STATE, lambda s: charger in (s["target"], s["last_reached"]), timeout=30,
+                       message="on its way to the charger")  # it stood on it: there at once
+        assert requests.delete(sim.url + "/waypoints/dock", timeout=10).status_code == 204
+        assert requests.delete(sim.url + "/waypoints/" + charger, timeout=10).status_code == 204
+        before = sim.navigation()
+        home.send(ROOT_TOPIC + "/dock/press", "PRESS")
+        refused = home.wait_json(STATE, lambda s: (s["refused"] or {}).get("command") == "dock")["refused"]
+        assert refused["message"].startswith("This map has no dock."), refused
+        assert sim.navigation()["goal_id"] == before["goal_id"]  # no goal sent
+    finally:
+        body = {k: dock[k] for k in ("x", "y", "yaw")}
+        assert requests.put(sim.url + "/waypoints/dock", json=body, timeout=10).status_code in (200, 201)
+
+
 def test_the_e_stop_from_home_assistant_latches_and_refuses_goals(sim, home):
     home.send(ROOT_TOPIC + "/estop/press", "PRESS")
     home.wait_json(STATE, lambda s: s["estop"] is True and s["status"] == "estop")

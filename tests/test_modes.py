@@ -198,7 +198,7 @@ def test_a_map_without_a_dock_says_to_set_the_pose(cfg, harness):
     harness.modes.wait(5)
     assert harness.poses == []
     assert harness.modes.status()["message"] == (
-        "running; set the robot's pose (POST /pose) \u2013 the map has no dock waypoint")
+        "running; set the robot's pose (POST /pose) \u2013 the map has no dock")
 
 
 def test_the_pose_given_or_named_with_the_switch_is_set(cfg, harness):

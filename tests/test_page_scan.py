@@ -107,7 +107,7 @@ def test_the_speed_setting_scales_the_joystick(sim, page):
     page.locator("#speed-range").fill("100")
 
 
-def test_home_goes_to_the_dock_and_without_a_dock_says_why(sim, page):
+def test_home_goes_to_the_dock_whatever_its_name_and_without_a_dock_says_why(sim, page):
     log = RequestLog(page)
     sim.post("/goto", {"x": 1.0, "y": 0.5, "yaw": 0.0, "wait": 30}, timeout=40)  # away from the dock
     assert page.get_attribute("#home", "aria-disabled") == "false"
@@ -119,12 +119,20 @@ def test_home_goes_to_the_dock_and_without_a_dock_says_why(sim, page):
     sim.post("/stop")
 
     dock = sim.get("/waypoints/dock").json()
-    assert sim_request(sim, "DELETE", "/waypoints/dock").status_code == 204
+    charger = {"x": dock["x"], "y": dock["y"], "yaw": dock["yaw"], "dock": True}
+    assert sim_request(sim, "PUT", "/waypoints/Ladestation", charger).status_code == 201  # the owner's word
     try:
+        assert sim_request(sim, "DELETE", "/waypoints/dock").status_code == 204  # the old name goes: no matter
+        page.wait_for_function("document.getElementById('home').title.endsWith('Ladestation')")
+        page.locator("#home").tap()
+        wait_for(lambda: len(log.calls("POST", "/goto")) == 2, timeout=5, message="a second goal sent")
+        assert json.loads(log.calls("POST", "/goto")[1].post_data)["name"] == "Ladestation"
+        sim.post("/stop")
+        assert sim_request(sim, "DELETE", "/waypoints/Ladestation").status_code == 204
         page.wait_for_function("document.getElementById('home').getAttribute('aria-disabled') === 'true'")
         page.locator("#home").tap(force=True)  # greyed (aria-disabled), yet a finger can tap it: to learn why
-        page.wait_for_function("document.getElementById('error').textContent.includes('no place named dock')")
-        assert len(log.calls("POST", "/goto")) == 1, "no goal without a dock"
+        page.wait_for_function("document.getElementById('error').textContent.includes('no charger marked')")
+        assert len(log.calls("POST", "/goto")) == 2, "no goal without a dock"
     finally:
         body = {"x": dock["x"], "y": dock["y"], "yaw": dock["yaw"]}
         assert sim_request(sim, "PUT", "/waypoints/dock", body).status_code in (200, 201)

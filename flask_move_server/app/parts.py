@@ -321,11 +321,6 @@ def build_robot(config, node, drive, estop=None):
 
 
 def dock_position(store):
-    """(x, y) of the ``dock`` waypoint of the waypoints in use (the active map's), or None without one."""
-    from flask_move_server.core.errors import UnknownWaypoint
-
-    try:
-        dock = store.get("dock")
-    except UnknownWaypoint:
-        return None
-    return dock.x, dock.y
+    """(x, y) of the dock of the waypoints in use (the active map's), or None without one."""
+    dock = store.dock()
+    return (dock.x, dock.y) if dock is not None else None

@@ -131,6 +131,17 @@ class NotStuck(MoveServerError, RuntimeError):
     code = "not_stuck"
 
 
+class NoDock(MoveServerError, RuntimeError):
+    """The map has no dock: no waypoint is marked as the charger (and none is named dock)."""
+
+    code = "no_dock"
+    MESSAGE = ("This map has no dock. Drive the robot onto its charger and mark that place as the dock: "
+               "PUT /waypoints/<name> with {\"from\": \"current\", \"dock\": true}.")
+
+    def __init__(self, message=MESSAGE):
+        super().__init__(message)
+
+
 class Pressed(MoveServerError, RuntimeError):
     """A joystick command that would push the robot on against what it is pressed on."""
 

@@ -11,10 +11,11 @@ import logging
 import math
 import time
 
-from flask_move_server.core.errors import MoveServerError, NoPose, UnknownWaypoint
+from flask_move_server.core.errors import MoveServerError, NoPose
 from flask_move_server.core.geometry import Goal, Pose2D
 from flask_move_server.explore.exploration import DONE, EXPLORING, FAILED, RETURNING, SAVING, STUCK
 from flask_move_server.explore.stuck import STUCK_AFTER, Trail, moved, stuck_message
+from flask_move_server.waypoints import make_waypoint
 
 log = logging.getLogger(__name__)
 
@@ -233,7 +234,7 @@ class ExplorerWorker:
         """Back to the start (or the dock marked while mapping); False when the exploration ended."""
         if not exp.return_home:
             return self._still(exp)
-        home, name = self._home_pose()
+        home, name, dock = self._home_pose()
         with self._lock:
             if not self._still(exp):
                 return False
@@ -243,7 +244,7 @@ class ExplorerWorker:
             self._changed(exp)
         state, why = "aborted", None
         for _ in range(HOME_TRIES):  # move_base may give up once (a corner, a person); a second try often does
-            seq = self._send_home(exp, home, name)
+            seq = self._send_home(exp, home, dock)
             if seq is None:
                 return False
             state, why = self._home_goal_end(exp, seq)
@@ -256,13 +257,14 @@ class ExplorerWorker:
                 "saved where it stands.".format(note, name, why or state)
         return True
 
-    def _send_home(self, exp, home, name):
-        """The goal home's seq; None when the exploration ended (or the goal was refused: failed)."""
+    def _send_home(self, exp, home, dock):
+        """The goal home's seq (named ``dock``, the dock's name, if it goes there); None when the exploration
+        ended (or the goal was refused: failed)."""
         with self._sending:
             if not self._still(exp):
                 return None
             try:
-                seq = self._robot.run_goto(Goal(home, name if name == DOCK else None))
+                seq = self._robot.run_goto(Goal(home, dock))
             except MoveServerError as exc:
                 self._fail(exp, "The way back was refused: {}".format(exc))
                 return None
@@ -280,15 +282,26 @@ class ExplorerWorker:
         return state, why
 
     def _home_pose(self):
-        """(Pose2D, words): the ``dock`` place marked while mapping, else where exploring began."""
+        """(Pose2D, words, dock's name or None): the dock marked while mapping, else where exploring began."""
         store = self._maps.store
-        if store.path == self._maps.marks.path:
-            try:
-                dock = store.get(DOCK)
-                return Pose2D(dock.x, dock.y, dock.yaw), DOCK
-            except UnknownWaypoint:
-                pass
-        return self._home, "where it started"
+        dock = store.dock() if store.path == self._maps.marks.path else None
+        if dock is not None:
+            return Pose2D(dock.x, dock.y, dock.yaw), dock.name, dock.name
+        return self._home, "where it started", None
+
+    def _mark_the_dock(self):
+        """A map made without a dock marked gets one where exploring began (the robot left its charger):
+        ``dock``, which the owner may rename in their words (the role stays)."""
+        store = self._maps.store
+        if store.path != self._maps.marks.path or store.dock() is not None:
+            return
+        if any(waypoint.name == DOCK for waypoint in store.all()):
+            return  # the owner's own place of that name, whose dock role was taken: left as it is
+        home = self._home
+        try:
+            store.put(make_waypoint(DOCK, home.x, home.y, home.yaw), dock=True)
+        except MoveServerError as exc:  # a place named dock that is no dock, a full file: saved without one
+            log.warning("the map is saved without a dock: %s", exc)
 
     def _save(self, exp):
         with self._lock:
@@ -302,6 +315,7 @@ class ExplorerWorker:
             here = self._robot.current_pose()
         except MoveServerError:
             here = None
+        self._mark_the_dock()
         try:
             result = self._maps.save(exp.save_as, exp.overwrite, then=exp.then == "navigation", here=here)
             if exp.then == "idle":

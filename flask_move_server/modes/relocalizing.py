@@ -1,12 +1,13 @@
 """Where to tell localization the robot is after a switch: a waypoint of the map, or its dock.
 
 After a switch to navigation on a named map the robot's pose is set for it (RViz's
-"2D Pose Estimate"): the pose given with the switch, else the map's ``dock`` waypoint when it
-has one, else the running message asks for ``POST /pose``. Navigation on the stack's own map
-(map null) is left as the stack sets it, as before modes existed. After a restart of a crashed
-stack the robot has moved since, so nothing is set and the message says to check. The dock set
-by the server is an assumption until the owner confirms or sets the pose (``assumed_pose.py``). Waypoints are
-read with the waypoints file's own loader. Pure: no rospy, no Flask.
+"2D Pose Estimate"): the pose given with the switch, else the map's dock (the waypoint marked as
+its charger, or one named ``dock``) when it has one, else the running message asks for
+``POST /pose``. Navigation on the stack's own map (map null) is left as the stack sets it, as
+before modes existed. After a restart of a crashed stack the robot has moved since, so nothing is
+set and the message says to check. The dock set by the server is an assumption until the owner
+confirms or sets the pose (``assumed_pose.py``). Waypoints are read with the waypoints file's own
+loader. Pure: no rospy, no Flask.
 """
 
 from flask_move_server.core.errors import UnknownWaypoint, WaypointFileError
@@ -14,8 +15,6 @@ from flask_move_server.core.geometry import Pose2D
 from flask_move_server.waypoints import check_name, suggest
 from flask_move_server.waypoints import locked_file as waypoints_file
 from flask_move_server.waypoints import yaml_format as waypoints_format
-
-DOCK = "dock"
 
 
 def _waypoints(path):
@@ -48,16 +47,21 @@ def _not_on_map(name, map_name, names, close):
 
 
 def dock_pose(path):
-    """The ``dock`` waypoint's Pose2D in ``path``, or None (no file, no dock, or a broken file)."""
+    """(name, Pose2D) of the dock in the waypoints file ``path``, or None (no file, no dock, or a broken file)."""
     try:
-        return waypoint_pose(path, DOCK)
-    except (UnknownWaypoint, WaypointFileError):
+        document = waypoints_format.parse_document(waypoints_file.read(path) or "", source=path)
+    except WaypointFileError:
         return None
+    name = waypoints_format.dock_of(document.waypoints, document.dock)
+    if name is None:
+        return None
+    wp = document.waypoints[name]
+    return name, Pose2D(wp.x, wp.y, wp.yaw)
 
 
 MAPPING = "running; drive the robot around the place, then save the map (POST /maps, robotctl map save NAME)"
 OWN_MAP = "running on the map the navigation stack was configured with"
-NO_DOCK = "running; set the robot's pose (POST /pose) \u2013 the map has no dock waypoint"
+NO_DOCK = "running; set the robot's pose (POST /pose) \u2013 the map has no dock"
 
 
 def after_start(target, waypoints_path, publish):
@@ -76,8 +80,9 @@ def after_start(target, waypoints_path, publish):
     found = dock_pose(waypoints_path(target.map))
     if found is None:
         return NO_DOCK, None
-    note, published = _publish_note(publish, found, "the dock waypoint")
-    return note, DOCK if published else None
+    name, pose = found
+    note, published = _publish_note(publish, pose, "the dock, {}".format(name))
+    return note, name if published else None
 
 
 def _publish_note(publish, pose, what):

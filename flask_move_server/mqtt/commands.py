@@ -10,14 +10,13 @@ the Status sensor's attributes; the next command that is taken clears it. Pure: 
 import datetime
 import logging
 
-from flask_move_server.core.errors import MoveServerError, RunConflict
+from flask_move_server.core.errors import MoveServerError, NoDock, RunConflict
 from flask_move_server.core.geometry import Goal, Pose2D
 from flask_move_server.process.log_limits import Throttled
 
 log = logging.getLogger(__name__)
 
 SET, PRESS = "set", "press"
-DOCK = "dock"
 STOPPED = "Stopped from Home Assistant (MQTT)."
 VIA = "MQTT {}"  # who sent a goal that ended a run, as the run's end says: "MQTT goto/set"
 LINES_BURST = 20  # command lines logged per 10 s (as the navigator's goal lines); the rest of a flood is counted
@@ -58,7 +57,11 @@ class Commands:
         self._lines.info("MQTT: goal %d to %s", seq, waypoint.name)
 
     def dock(self, _payload):
-        self.goto(DOCK, "dock/press")
+        """The Dock button: to the map's dock, whatever its name."""
+        dock = self._store.dock()
+        if dock is None:
+            raise NoDock()
+        self.goto(dock.name, "dock/press")
 
     def route(self, name):
         route = self._store.get_route(name[:MAX_NAME])

@@ -3,7 +3,7 @@
 ``BatteryModel`` (pure) keeps the charge, 0..1. Each step of simulated time it loses
 ``REST_DRAIN`` a second (the Pi, the lidar) plus ``DRIVE_DRAIN`` per metre the wheels roll (their
 mean ground speed, so a turn on the spot costs too), and gains ``CHARGE_RATE`` a second instead
-while the robot stands (wheels still) within ``DOCK_RADIUS`` of the ``dock`` waypoint, up to full.
+while the robot stands (wheels still) within ``DOCK_RADIUS`` of the map's dock, up to full.
 At the robot's cruise speed (0.3 m/s) that is about 2 % a minute: 100 % to 60 % in 20 minutes of
 driving, and +1 % every 10 s on the dock, so the demo shows a change within minutes.
 
@@ -32,7 +32,7 @@ START = 0.87  # the charge the simulated robot starts with (sim.battery_start)
 REST_DRAIN = 0.002 / 60.0  # a second, standing: 0.2 % a minute
 DRIVE_DRAIN = 0.001  # a metre the wheels roll: 1 % every 10 m
 CHARGE_RATE = 0.001  # a second on the dock: 1 % every 10 s
-DOCK_RADIUS = 0.3  # m from the dock waypoint
+DOCK_RADIUS = 0.3  # m from the dock (the waypoint marked as the charger)
 STILL = 0.005  # m/s: wheels slower than this stand still
 CELLS = 3
 CELL_EMPTY, CELL_FULL = 3.3, 4.2  # V a cell, at 0 % and 100 %

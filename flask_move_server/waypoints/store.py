@@ -27,6 +27,7 @@ import threading
 
 from flask_move_server.core.errors import (
     BadRoute,
+    BadWaypoint,
     MapFull,
     UnknownRoute,
     UnknownWaypoint,
@@ -38,7 +39,16 @@ from flask_move_server.core.errors import (
 from flask_move_server.missions.route import check_route_name
 from flask_move_server.waypoints import Waypoint, check_name, suggest
 from flask_move_server.waypoints import locked_file as waypoints_file
-from flask_move_server.waypoints.yaml_format import Document, dump, entries_of, parse, routes_of, waypoints_of
+from flask_move_server.waypoints.yaml_format import (
+    Document,
+    dock_of,
+    dump,
+    entries_of,
+    marked_dock,
+    parse,
+    routes_of,
+    waypoints_of,
+)
 
 log = logging.getLogger(__name__)
 
@@ -65,6 +75,7 @@ class WaypointStore:
         self._lock = threading.Lock()
         self._waypoints = {}  # the last good set
         self._routes = {}  # and its routes, {name: Route} in file order
+        self._dock = None  # the name under dock: in its file (None: none marked)
         self._good_text = None  # its file text: what .bak becomes on the next save
         self._loaded = False
         self._stamp = None
@@ -90,7 +101,7 @@ class WaypointStore:
             log.info("waypoints: now serving %s", path)
             self.path = path
             self._waypoints, self._routes, self._good_text, self._loaded = {}, {}, None, False
-            self._stamp = self._problem = None
+            self._stamp = self._problem = self._dock = None
             self.version += 1
             self._refresh()
         self._announce()
@@ -132,6 +143,13 @@ class WaypointStore:
             except KeyError:
                 raise UnknownWaypoint(name, suggest(name, self._waypoints))
 
+    def dock(self):
+        """The map's dock (a Waypoint): the one marked, else one named ``dock``; None when the map has neither."""
+        with self._lock:
+            self._refresh()
+            name = dock_of(self._waypoints, self._dock)
+            return self._waypoints[name] if name is not None else None
+
     def routes(self):
         """Every route of the file, in file order."""
         with self._lock:
@@ -159,11 +177,21 @@ class WaypointStore:
 
     # writing ---------------------------------------------------------------
 
-    def put(self, waypoint):
-        """Add or replace ``waypoint``; True when it is new. Saved before returning."""
-        with self._edit() as (waypoints, _):
-            created = waypoint.name not in waypoints
-            waypoints[waypoint.name] = waypoint
+    def put(self, waypoint, dock=None):
+        """Add or replace ``waypoint``; True when it is new. Saved before returning.
+
+        ``dock``: True makes it the map's dock (the one before loses the role), False takes the role
+        from it, None leaves the role as it is."""
+        with self._edit() as draft:
+            created = waypoint.name not in draft.waypoints
+            draft.waypoints[waypoint.name] = waypoint
+            if dock:
+                draft.dock = waypoint.name
+            elif dock is False and draft.dock == waypoint.name:
+                draft.dock = None
+            elif dock is False and dock_of(draft.waypoints, draft.dock) == waypoint.name:
+                raise BadWaypoint("The waypoint named dock is the dock by its name: rename it, or mark another "
+                                  "place as the dock with \"dock\": true.")
         return created
 
     def delete(self, name):
@@ -172,14 +200,17 @@ class WaypointStore:
         WaypointInUse naming the routes that go through it, nothing written: they would lose a stop.
         """
         name = check_name(name)
-        with self._edit() as (waypoints, routes):
+        with self._edit() as draft:
+            waypoints = draft.waypoints
             if name not in waypoints:
                 raise UnknownWaypoint(name, suggest(name, waypoints))
-            users = [route.name for route in routes.values() if name in route.waypoints]
+            users = [route.name for route in draft.routes.values() if name in route.waypoints]
             if users:
                 raise WaypointInUse("The waypoint {} is used by {}: change or delete {} first.".format(
                     shown(name), _listed("route", users), "them" if len(users) > 1 else "it"))
             del waypoints[name]
+            if draft.dock == name:
+                draft.dock = None  # the dock's place is gone, and its role with it
 
     def put_route(self, route):
         """Add or replace ``route`` (a named Route); True when it is new. Saved before returning.
@@ -189,7 +220,8 @@ class WaypointStore:
         """
         if route.name is None:
             raise BadRoute("A route kept in the waypoints file needs a name.")
-        with self._edit() as (waypoints, routes):
+        with self._edit() as draft:
+            waypoints, routes = draft.waypoints, draft.routes
             unknown = list(dict.fromkeys(w for w in route.waypoints if w not in waypoints))
             if unknown:
                 raise BadRoute("The route {} goes through {} this map does not have. GET /waypoints lists the "
@@ -201,7 +233,8 @@ class WaypointStore:
     def delete_route(self, name):
         """Remove the route ``name`` (its waypoints stay). Saved before returning."""
         name = check_route_name(name)
-        with self._edit() as (_, routes):
+        with self._edit() as draft:
+            routes = draft.routes
             if name not in routes:
                 raise _unknown_route(name, routes)
             del routes[name]
@@ -213,18 +246,24 @@ class WaypointStore:
         in the same save (never a moment with both or neither). Returns the renamed Waypoint.
         """
         old, new = check_name(old), check_name(new)
-        with self._edit() as (waypoints, routes):
+        with self._edit() as draft:
+            waypoints, routes = draft.waypoints, draft.routes
             if old not in waypoints:
                 raise UnknownWaypoint(old, suggest(old, waypoints))
             if new in waypoints and new != old and not overwrite:
                 raise WaypointExists("A waypoint named {} exists already; pick another name, or ask to replace "
                                      "it.".format(shown(new)))
+            was_dock = dock_of(waypoints, draft.dock)
             items = [(new if k == old else k, v) for k, v in waypoints.items() if k != new or new == old]
             waypoints.clear()
             for k, v in items:
                 waypoints[k] = Waypoint(k, v.x, v.y, v.yaw)
             for k, route in routes.items():  # the routes go on through the same place, under its new name
                 routes[k] = route.renamed_waypoint(old, new)
+            if was_dock == old:
+                draft.dock = new  # the dock keeps its role under its new name (one named dock, too)
+            elif was_dock == new and draft.dock == new:
+                draft.dock = None  # the dock it replaced is gone, and its role with it
             return waypoints[new]
 
     @contextlib.contextmanager
@@ -233,11 +272,12 @@ class WaypointStore:
         # readers never wait behind a writer that waits for another process.
         with waypoints_file.file_lock(self.path + ".lock", self.lock_timeout), self._lock:
             self._refresh(strict=True)
-            waypoints, routes = dict(self._waypoints), dict(self._routes)
-            yield waypoints, routes
+            draft = _Draft(dict(self._waypoints), dict(self._routes), self._dock)
+            yield draft
+            waypoints, routes = draft.waypoints, draft.routes
             _check_room(waypoints, routes, self._waypoints, self._routes)
-            self._save(waypoints, routes)
-            self._waypoints, self._routes = waypoints, routes
+            self._save(waypoints, routes, draft.dock)
+            self._waypoints, self._routes, self._dock = waypoints, routes, draft.dock
             self.version += 1
         self._announce()
 
@@ -250,7 +290,7 @@ class WaypointStore:
             return
         try:
             text = waypoints_file.read(self.path)
-            waypoints, routes = self._load(text)
+            waypoints, routes, dock = self._load(text)
         except WaypointFileError as exc:
             self._broken(stamp, str(exc))
             if strict:
@@ -264,8 +304,11 @@ class WaypointStore:
                      len(routes))
             self.version += 1
         _warn_of_missing_stops(self.path, waypoints, routes)  # once per version of the file: loaded once
+        if dock is not None and dock not in waypoints:
+            log.warning("%s: its dock is %s, a waypoint it does not have: the map has no dock until one is marked "
+                        "(PUT /waypoints/<name> with \"dock\": true)", self.path, shown(dock))
         self._waypoints, self._routes, self._good_text, self._loaded = waypoints, routes, text, True
-        self._stamp, self._problem = stamp, None
+        self._stamp, self._problem, self._dock = stamp, None, dock
 
     def _broken(self, stamp, problem):
         """Remember why the file cannot be loaded: logged once per version of the file, not per request."""
@@ -283,10 +326,11 @@ class WaypointStore:
         loss = _why_lost(text, entries, self._loaded) if known else None
         if loss:
             raise WaypointFileError("{} {}, but the last good version had {} waypoints".format(self.path, loss, known))
-        return Document(waypoints_of(entries, self.path), routes_of(entries, self.path))
+        return Document(waypoints_of(entries, self.path), routes_of(entries, self.path),
+                        marked_dock(entries, self.path))
 
-    def _save(self, waypoints, routes):
-        text = dump(waypoints.values(), routes.values())
+    def _save(self, waypoints, routes, dock):
+        text = dump(waypoints.values(), routes.values(), dock)
         if len(text) > MAX_SAVED and len(text) > len(self._good_text or ""):
             raise MapFull("This change would make the map's waypoints file {} characters long; it holds at most {} "
                           "(its waypoints and routes). Nothing was changed: delete routes or waypoints this map no "
@@ -300,6 +344,13 @@ class WaypointStore:
                         "afresh); the file as it was, comments and all, is %s.bak until the next change: copy "
                         "it to keep it", self.path, self.path)
         self._stamp, self._good_text = waypoints_file.stamp(self.path), text
+
+
+class _Draft:
+    """A change being made (``WaypointStore._edit``): the waypoints, routes and dock it will save."""
+
+    def __init__(self, waypoints, routes, dock):
+        self.waypoints, self.routes, self.dock = waypoints, routes, dock
 
 
 def _check_room(waypoints, routes, before_waypoints, before_routes):

@@ -1,9 +1,11 @@
 """The waypoints file format: YAML text <-> ordered ``{name: Waypoint}`` and ``{name: Route}``.
 
-The format is the mapping guide's, with the map's routes (if any) beside the waypoints::
+The format is the mapping guide's, with the map's dock and routes (if any) beside the waypoints::
 
     waypoints:
       kitchen: [1.23, 4.56, 0.79]     # x [m], y [m], yaw [rad] in the map frame
+      Ladestation: [0.0, 0.0, 0.0]
+    dock: Ladestation                 # the waypoint where the robot charges (none: one named dock, if any)
     routes:
       rounds: {waypoints: [kitchen, dock], loops: 1, dwell: 5.0, on_failure: skip, schedule: ["21:30"]}
 
@@ -12,7 +14,8 @@ The format is the mapping guide's, with the map's routes (if any) beside the way
 :mod:`~flask_move_server.config.guarded_yaml` (a name given twice, anchors, aliases and deep
 nesting refused); whatever makes a file unreadable is a :class:`WaypointFileError` saying the
 line and what is wrong, never the file's text. :func:`dump` writes the seed format back, with
-numbers PyYAML reads as floats, and ``routes:`` only when there are routes. Pure: PyYAML only.
+numbers PyYAML reads as floats, ``dock:`` only when one is marked and ``routes:`` only when there
+are routes. Pure: PyYAML only.
 """
 
 import collections
@@ -40,21 +43,33 @@ _BOUNDS = (("x", POSITION_LIMIT), ("y", POSITION_LIMIT), ("yaw", YAW_LIMIT))
 class Entries(dict):
     """The raw ``waypoints:`` mapping, knowing the line each name is on (for errors), whether the
     text ended open, right after a bare value (``guarded_yaml.Document.open_end``), and the raw
-    ``routes:`` mapping beside it (``{}`` when the file has none)."""
+    ``routes:`` mapping beside it (``{}`` when the file has none) and the ``dock:`` name (None when none)."""
 
-    def __init__(self, entries, lines, open_end=False, routes=None):
+    def __init__(self, entries, lines, open_end=False, routes=None, dock=None):
         super().__init__(entries)
         self.lines = lines
         self.open_end = open_end
         self.routes = routes or {}
+        self.dock = dock
 
     def where(self, name, section="waypoints"):
         line = self.lines.get((section, name))
         return ", line {}".format(line) if line else ""
 
 
-class Document(collections.namedtuple("Document", "waypoints routes")):
-    """What a waypoints file holds: ordered ``{name: Waypoint}`` and ordered ``{name: Route}``."""
+class Document(collections.namedtuple("Document", "waypoints routes dock")):
+    """What a waypoints file holds: ordered ``{name: Waypoint}``, ordered ``{name: Route}`` and the name
+    of the waypoint marked as the dock (None when none is: see :func:`dock_of`)."""
+
+
+DOCK = "dock"  # before a dock was marked, the waypoint of this name was the dock: it still is
+
+
+def dock_of(waypoints, marked):
+    """The name of the dock among ``waypoints``: the one ``marked``, else one named ``dock``; None when neither."""
+    if marked is not None:
+        return marked if marked in waypoints else None
+    return DOCK if DOCK in waypoints else None
 
 
 def parse(text, source="waypoints"):
@@ -69,7 +84,7 @@ def parse_document(text, source="waypoints"):
     store's question, not the format's.
     """
     entries = entries_of(text, source)
-    return Document(waypoints_of(entries, source), routes_of(entries, source))
+    return Document(waypoints_of(entries, source), routes_of(entries, source), marked_dock(entries, source))
 
 
 def entries_of(text, source="waypoints"):
@@ -80,9 +95,9 @@ def entries_of(text, source="waypoints"):
         raise WaypointFileError("{} is not valid YAML: {}".format(source, exc))
     if data is None:
         return None
-    if not isinstance(data, dict) or set(data) - {"waypoints", "routes"}:
-        raise WaypointFileError("{} must hold one mapping, 'waypoints: {{name: [x, y, yaw]}}', and 'routes:' "
-                                "beside it if the map has routes".format(source))
+    if not isinstance(data, dict) or set(data) - {"waypoints", "routes", "dock"}:
+        raise WaypointFileError("{} must hold one mapping, 'waypoints: {{name: [x, y, yaw]}}', and 'dock:' and "
+                                "'routes:' beside it if the map has them".format(source))
     entries, routes = data.get("waypoints"), data.get("routes")
     if entries is None and routes is not None:
         raise WaypointFileError("{}, line {}: 'routes' needs 'waypoints:' beside it (write 'waypoints: {{}}' "
@@ -95,7 +110,24 @@ def entries_of(text, source="waypoints"):
     if not isinstance(routes, (dict, type(None))):
         raise WaypointFileError("{}, line {}: 'routes' must map names to routes, 'name: {{waypoints: [names], "
                                 "...}}'".format(source, lines.get(("routes",), 1)))
-    return Entries(entries, lines, open_end, routes)
+    return Entries(entries, lines, open_end, routes, data.get("dock"))
+
+
+def marked_dock(entries, source):
+    """The waypoint name under ``dock:`` (NFC), None when there is none; WaypointFileError when it is no name.
+
+    A name the file's waypoints do not have is kept: :func:`dock_of` finds no dock then, and the
+    store says so, as of a route's missing stop."""
+    raw = entries.dock if isinstance(entries, Entries) else None
+    if raw is None:
+        return None
+    try:
+        if not isinstance(raw, str):
+            raise BadWaypoint("not a name")
+        return check_name(raw)
+    except BadWaypoint:
+        raise WaypointFileError("{}, line {}: 'dock' must name one of the waypoints, 'dock: Ladestation'".format(
+            source, entries.lines.get(("dock",), 1)))
 
 
 def waypoints_of(entries, source):
@@ -163,17 +195,20 @@ def _coordinate(label, limit, value):
         raise BadWaypoint("{} must be a finite number between {:.0f} and {:.0f}".format(label, -limit, limit))
 
 
-def dump(waypoints, routes=()):
-    """The file text for ``waypoints`` (Waypoints) and ``routes`` (Routes), each an iterable in file order.
+def dump(waypoints, routes=(), dock=None):
+    """The file text for ``waypoints`` (Waypoints) and ``routes`` (Routes), each an iterable in file order,
+    and ``dock``, the name of the waypoint marked as the dock (None: none marked).
 
-    The seed format, and a ``routes:`` block after it only when there are routes (a file without
-    routes is written back as it was), one line per route.
+    The seed format, a ``dock:`` line after it only when one is marked and a ``routes:`` block only
+    when there are routes (a file with neither is written back as it was), one line per route.
     """
     waypoints, routes = list(waypoints), list(routes)
     lines = ["waypoints:" if waypoints else "waypoints: {}"]
     for wp in waypoints:
         coords = ", ".join(_number(v) for v in (wp.x, wp.y, wp.yaw))
         lines.append("  {}: [{}]".format(_key(wp.name), coords))
+    if dock is not None:
+        lines.append("dock: {}".format(_key(dock)))
     if routes:
         lines.append("routes:")
         lines.extend("  {}: {}".format(_key(route.name), _route_line(route)) for route in routes)

@@ -100,7 +100,7 @@ def text(data, key):
 _EXAMPLES = {
     frozenset({"name", "x", "y", "yaw", "wait", "valid_until"}): '{"name": "kitchen"}',
     frozenset({"linear", "angular", "valid_until"}): '{"linear": 0.2, "angular": 0.0}',
-    frozenset({"x", "y", "yaw", "from"}): '{"x": 1.0, "y": 2.0, "yaw": 0.0} or {"from": "current"}',
+    frozenset({"x", "y", "yaw", "from", "dock"}): '{"x": 1.0, "y": 2.0, "yaw": 0.0} or {"from": "current"}',
     frozenset({"mode", "map", "pose", "wait"}): '{"mode": "navigation", "map": "flat"}',
     frozenset({"x", "y", "yaw", "name"}): '{"x": 1.0, "y": 2.0, "yaw": 0.0} or {"name": "dock"}',
     frozenset({"x", "y", "yaw", "name", "confirm"}):

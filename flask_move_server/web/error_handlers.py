@@ -33,6 +33,7 @@ STATUS = (
     (errors.RunConflict, 409),
     (errors.NotStuck, 409),
     (errors.Pressed, 409),
+    (errors.NoDock, 409),
     (errors.ExploreConflict, 409),
     (errors.NoPose, 409),
     (errors.WaypointsLocked, 503),

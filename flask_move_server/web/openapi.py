@@ -120,15 +120,19 @@ def _estop(summary, flag, body):
 
 def _waypoint_item():
     name = {"name": "name", "in": "path", "required": True, "description": NAME_RULE, "schema": _name()}
+    dock = {"type": "boolean", "description": "true: this place is the map's dock (the charger; the one before "
+                                                 "loses the role); false: it is no longer"}
     by_pose = _object({"x": _coordinate(POSITION_LIMIT), "y": _coordinate(POSITION_LIMIT),
-                       "yaw": _coordinate(YAW_LIMIT)}, ["x", "y", "yaw"])
-    from_robot = _object({"from": {"enum": ["current"]}}, ["from"])
+                       "yaw": _coordinate(YAW_LIMIT), "dock": dock}, ["x", "y", "yaw"])
+    from_robot = _object({"from": {"enum": ["current"]}, "dock": dock}, ["from"])
+    role_only = _object({"dock": dock}, ["dock"])
     saved = _ok({"created": {"type": "boolean"}, "waypoint": _ref("Waypoint")})
     item = {
         "get": _operation("One waypoint", None, {200: _json(_ref("Waypoint"))}, errors=(400, 404)),
-        "put": _operation("Create or replace a waypoint (saved before the answer)", {"oneOf": [by_pose, from_robot]},
+        "put": _operation("Create or replace a waypoint (saved before the answer)",
+                          {"oneOf": [by_pose, from_robot, role_only]},
                           {200: dict(saved, description="replaced"), 201: dict(saved, description="created")},
-                          errors=(409, 503)),
+                          errors=(404, 409, 503)),
         "delete": _operation("Delete a waypoint (saved before the answer)", None,
                              {204: {"description": "deleted"}}, errors=(400, 404, 409, 503)),
         "patch": _operation("Rename a waypoint in one save; onto another's name only with overwrite",
@@ -290,7 +294,7 @@ def _route_item(route, put):
         "get": _operation("One route", None, {200: _json(route)}, errors=(400, 404)),
         "put": _operation("Create or replace a route (saved before the answer)", put,
                           {200: dict(saved, description="replaced"), 201: dict(saved, description="created")},
-                          errors=(409, 503)),
+                          errors=(404, 409, 503)),
         "delete": _operation("Delete a route (saved before the answer)", None, {204: {"description": "deleted"}},
                              errors=(400, 404, 409, 503)),
     }

@@ -56,7 +56,9 @@ def _components(max_body_bytes):
     responses = {"E{}".format(status): _json(_ref("Error"), text) for status, text in ERROR_CODES.items()}
     responses["E413"]["description"] += " ({} bytes here)".format(max_body_bytes)
     pose = _object({"x": {"type": "number"}, "y": {"type": "number"}, "yaw": {"type": "number"}}, ["x", "y", "yaw"])
-    waypoint = _object(dict(pose["properties"], name={"type": "string"}), ["name", "x", "y", "yaw"])
+    waypoint = _object(dict(pose["properties"], name={"type": "string"},
+                            dock={"type": "boolean", "description": "present (true) on the map's dock"}),
+                       ["name", "x", "y", "yaw"])
     estop = _object({"latched": {"type": "boolean"}, "source": {"type": "string", "nullable": True},
                      "since": {"type": "string", "nullable": True}})
     number = {"type": "number", "nullable": True}

@@ -79,27 +79,46 @@ def teleop():
 
 @api.route("/waypoints", methods=["GET"])
 def list_waypoints():
-    return jsonify({"waypoints": [wp.as_dict() for wp in _store().all()]})
+    store = _store()
+    waypoints, dock = store.all(), store.dock()
+    return jsonify({"waypoints": [_shown_waypoint(wp, dock) for wp in waypoints]})
 
 
 @api.route("/waypoints/<waypoint:name>", methods=["GET"])
 def get_waypoint(name):
-    return jsonify(_store().get(name).as_dict())
+    store = _store()
+    return jsonify(_shown_waypoint(store.get(name), store.dock()))
+
+
+def _shown_waypoint(waypoint, dock):
+    """The waypoint's JSON: ``"dock": true`` on the map's dock."""
+    shown = waypoint.as_dict()
+    if dock is not None and dock.name == waypoint.name:
+        shown["dock"] = True
+    return shown
 
 
 @api.route("/waypoints/<waypoint:name>", methods=["PUT"])
 def put_waypoint(name):
     check_name(name)
-    data = json_object(("x", "y", "yaw", "from"))
+    data = json_object(("x", "y", "yaw", "from", "dock"))
+    dock = data.pop("dock", None)
+    if not isinstance(dock, (bool, type(None))):
+        raise BadRequest("Field 'dock' must be true (this place is the robot's charger) or false.")
     if "from" in data:
         if data["from"] != "current" or len(data) > 1:
-            raise BadRequest('Use {"from": "current"} alone to record the robot\'s pose now.')
+            raise BadRequest('Use {"from": "current"} alone to record the robot\'s pose now (and "dock": true '
+                             'if it is the charger).')
         pose = _robot().current_pose()
         waypoint = make_waypoint(name, pose.x, pose.y, pose.yaw)
+    elif not data and dock is not None:
+        waypoint = _store().get(name)  # {"dock": true} alone: this place, where it is, is (or is not) the charger
     else:
         waypoint = make_waypoint(name, number(data, "x"), number(data, "y"), number(data, "yaw"))
-    created = _store().put(waypoint)
-    return jsonify({"status": "ok", "created": created, "waypoint": waypoint.as_dict()}), 201 if created else 200
+    store = _store()
+    created = store.put(waypoint, dock=dock)
+    return jsonify({"status": "ok", "created": created,
+                    "waypoint": _shown_waypoint(waypoint, store.dock())}), 201 if created else 200
 
 
 @api.route("/waypoints/<waypoint:name>", methods=["DELETE"])
@@ -116,8 +135,9 @@ def rename_waypoint(name):
     if not isinstance(overwrite, bool):
         raise BadRequest("Field 'overwrite' must be true or false.")
     check_name(name)
-    waypoint = _store().rename(name, text(data, "name"), overwrite=overwrite)
-    return jsonify({"status": "ok", "waypoint": waypoint.as_dict()})
+    store = _store()
+    waypoint = store.rename(name, text(data, "name"), overwrite=overwrite)
+    return jsonify({"status": "ok", "waypoint": _shown_waypoint(waypoint, store.dock())})
 
 
 class WaypointNameConverter(PathConverter):
