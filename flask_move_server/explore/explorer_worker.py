@@ -16,13 +16,13 @@ from flask_move_server.core.geometry import Goal, Pose2D
 from flask_move_server.explore.exploration import DONE, EXPLORING, FAILED, RETURNING, SAVING, STUCK
 from flask_move_server.explore.stuck import STUCK_AFTER, Trail, moved, stuck_message
 from flask_move_server.waypoints import make_waypoint
+from flask_move_server.waypoints.yaml_format import DOCK
 
 log = logging.getLogger(__name__)
 
 POLL = 0.5  # s between looks at the map and the goal (a goal's end wakes the worker at once)
 NEARER = 0.1  # m the robot must come nearer its target within progress_timeout
 KEEP = 0.75  # m: a goal is kept while a frontier's target lies this near it
-DOCK = "dock"
 HOME_TRIES = 2  # goals home before the map is saved where the robot stands
 
 
