@@ -109,7 +109,7 @@ def test_the_robot_appears_as_one_device_with_every_entity(sim, home, broker):
 def test_the_state_says_what_the_robot_does(sim, home):
     state = home.wait_json(STATE)
     assert set(state) == {"status", "message", "mode", "map", "target", "last_reached", "run", "estop", "pose",
-                          "battery", "refused"}
+                          "battery", "dock", "refused"}
     assert state["mode"] == "navigation" and state["estop"] is False
     assert set(state["pose"]) == {"x", "y", "yaw"}
     battery = home.wait_json(STATE, lambda s: s["battery"] is not None)["battery"]
@@ -129,13 +129,14 @@ def test_go_to_sends_the_robot_and_stop_stops_it(sim, home):
     wait_for(lambda: sim.get("/status").json()["motors"]["left"] == 0, message="the motors at rest") or motors
 
 
-def test_dock_drives_home_and_the_house_hears_it_arrived(sim, home):
+def test_dock_docks_onto_the_charger_and_the_house_hears_it_charging(sim, home):
     home.send(ROOT_TOPIC + "/dock/press", "PRESS")
-    home.wait_json(STATE, lambda s: s["target"] == "dock", message="on its way to the dock")
-    state = home.wait_json(STATE, lambda s: s["status"] == "arrived", timeout=60, message="arrived at the dock")
-    assert state["last_reached"] == "dock" and state["target"] is None
-    config = config_of(home, "sensor", "last_reached")
-    assert config["state_topic"] == STATE
+    state = home.wait_json(STATE, lambda s: s["status"] == "docking", message="on its way home")
+    assert state["dock"] in ("going", "approaching") and state["message"] == "Going home to dock."
+    state = home.wait_json(STATE, lambda s: s["status"] == "charging", timeout=60, message="charging on the dock")
+    assert state["dock"] == "charging" and state["message"] == "Charging at dock."
+    config = config_of(home, "sensor", "dock")
+    assert config["state_topic"] == STATE and config["name"] == "Dock"
 
 
 def test_a_refused_command_says_why_and_moves_nothing(sim, home):
@@ -156,9 +157,12 @@ def test_dock_goes_to_the_charger_by_the_owners_name_and_without_one_says_so(sim
     del put["name"]
     assert requests.put(sim.url + "/waypoints/" + charger, json=put, timeout=10).status_code == 201
     try:
+        sim.post("/undock")  # on the charger since the test before: off it, to dock again
+        wait_for(lambda: sim.get("/status").json()["dock"]["state"] == "undocked", timeout=30, message="undocked")
         home.send(ROOT_TOPIC + "/dock/press", "PRESS")
-        home.wait_json(STATE, lambda s: charger in (s["target"], s["last_reached"]), timeout=30,
-                       message="on its way to the charger")  # it stood on it: there at once
+        home.wait_json(STATE, lambda s: s["status"] in ("docking", "charging") and charger in (s["message"] or ""),
+                       timeout=30, message="docking at the charger, by its name")
+        sim.post("/stop")
         assert requests.delete(sim.url + "/waypoints/dock", timeout=10).status_code == 204
         assert requests.delete(sim.url + "/waypoints/" + charger, timeout=10).status_code == 204
         before = sim.navigation()

@@ -30,12 +30,13 @@ def render(template, state):
 
 STATE = {"status": "moving", "message": None, "mode": "navigation", "map": "flat", "target": "Küche",
          "last_reached": None, "run": None, "estop": False, "pose": {"x": 1.0, "y": 2.0, "yaw": 0.5},
-         "battery": {"percentage": 62.0, "voltage": 12.1, "charging": False, "age": 0.4}, "refused": None}
+         "battery": {"percentage": 62.0, "voltage": 12.1, "charging": False, "age": 0.4}, "dock": "undocked",
+         "refused": None}
 
 
 def test_every_config_topic_is_under_the_prefix_with_the_robot_s_name():
     found = configs()
-    assert len(found) == 14
+    assert len(found) == 15  # the Dock sensor (the docking's state) beside the Dock button
     for topic in found:
         prefix, component, robot, _obj, config = topic.split("/")
         assert (prefix, robot, config) == ("homeassistant", "robo", "config")
@@ -108,3 +109,15 @@ def test_the_mqtt_flag_turns_mqtt_on_for_that_broker():
     assert (config.mqtt.host, config.mqtt.port) == ("hub.lan", 1883)
     with pytest.raises(ConfigError, match="--mqtt"):
         load_config(parse_args(["--sim", "--mqtt", "hub.lan:99999"]), [])
+
+
+def test_the_dock_sensor_and_the_status_say_what_the_docking_does():
+    from flask_move_server.mqtt.robot_state import _status
+
+    dock = configs()["homeassistant/sensor/robo/dock/config"]
+    assert dock["name"] == "Dock" and render(dock["value_template"], dict(STATE, dock="charging")) == "charging"
+    assert _status({"state": "active"}, {}, False, None, False, "going") == "docking"
+    assert _status({"state": "succeeded"}, {"active": True}, False, None, False, "approaching") == "docking"
+    assert _status({"state": "succeeded"}, {}, False, None, False, "charging") == "charging"
+    assert _status({"state": "succeeded"}, {}, False, None, False, "undocked") == "arrived"
+    assert _status({"state": "active"}, {}, True, None, False, "going") == "estop"

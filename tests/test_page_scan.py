@@ -107,16 +107,20 @@ def test_the_speed_setting_scales_the_joystick(sim, page):
     page.locator("#speed-range").fill("100")
 
 
-def test_home_goes_to_the_dock_whatever_its_name_and_without_a_dock_says_why(sim, page):
+def test_home_docks_onto_the_charger_whatever_its_name_and_without_a_dock_says_why(sim, page):
     log = RequestLog(page)
     sim.post("/goto", {"x": 1.0, "y": 0.5, "yaw": 0.0, "wait": 30}, timeout=40)  # away from the dock
     assert page.get_attribute("#home", "aria-disabled") == "false"
     page.locator("#home").tap()
-    wait_for(lambda: log.calls("POST", "/goto"), timeout=5, message="a goal sent")
-    sent = json.loads(log.calls("POST", "/goto")[0].post_data)
-    assert sent["name"] == "dock" and "valid_until" in sent, sent  # a goal like any other: late, refused
-    wait_for(lambda: sim.status()["navigation"]["target"] == "dock", timeout=10, message="going to the dock")
-    sim.post("/stop")
+    wait_for(lambda: log.calls("POST", "/dock"), timeout=5, message="a docking asked for")
+    assert "valid_until" in json.loads(log.calls("POST", "/dock")[0].post_data)  # late on a bad Wi-Fi: refused
+    page.wait_for_function("document.getElementById('nav-text').textContent === 'Going home to dock.'")
+    page.wait_for_function("document.getElementById('home').textContent === 'Charging'", timeout=60000)
+    assert page.get_attribute("#home", "aria-pressed") == "true"
+    assert page.locator("#nav-text").text_content() == "Charging at dock."
+    assert page.get_attribute("#battery", "data-charging") == "1"
+    sim.post("/goto", {"x": 1.0, "y": 0.5, "yaw": 0.0, "wait": 30}, timeout=40)  # off the charger first, by itself
+    page.wait_for_function("document.getElementById('home').textContent === 'Home'")
 
     dock = sim.get("/waypoints/dock").json()
     charger = {"x": dock["x"], "y": dock["y"], "yaw": dock["yaw"], "dock": True}
@@ -125,14 +129,14 @@ def test_home_goes_to_the_dock_whatever_its_name_and_without_a_dock_says_why(sim
         assert sim_request(sim, "DELETE", "/waypoints/dock").status_code == 204  # the old name goes: no matter
         page.wait_for_function("document.getElementById('home').title.endsWith('Ladestation')")
         page.locator("#home").tap()
-        wait_for(lambda: len(log.calls("POST", "/goto")) == 2, timeout=5, message="a second goal sent")
-        assert json.loads(log.calls("POST", "/goto")[1].post_data)["name"] == "Ladestation"
+        wait_for(lambda: len(log.calls("POST", "/dock")) == 2, timeout=5, message="a second docking asked for")
+        page.wait_for_function("document.getElementById('nav-text').textContent === 'Going home to Ladestation.'")
         sim.post("/stop")
         assert sim_request(sim, "DELETE", "/waypoints/Ladestation").status_code == 204
         page.wait_for_function("document.getElementById('home').getAttribute('aria-disabled') === 'true'")
         page.locator("#home").tap(force=True)  # greyed (aria-disabled), yet a finger can tap it: to learn why
         page.wait_for_function("document.getElementById('error').textContent.includes('no charger marked')")
-        assert len(log.calls("POST", "/goto")) == 2, "no goal without a dock"
+        assert len(log.calls("POST", "/dock")) == 2, "no docking without a dock"
     finally:
         body = {"x": dock["x"], "y": dock["y"], "yaw": dock["yaw"]}
         assert sim_request(sim, "PUT", "/waypoints/dock", body).status_code in (200, 201)

@@ -351,7 +351,7 @@ def test_the_server_wires_webhooks_only_when_the_config_lists_some(robot_config,
     ("- url: file:///etc/passwd", "must be an http:// or https:// URL"),
     ("- url: ftp://hub.lan/x", "must be an http:// or https:// URL"),
     ("- url: http://user:pw@hub.lan/x", "no user:password@"),
-    ("- url: http://hub.lan/x\n    events: [arrived, docked]", "must be one of"),
+    ("- url: http://hub.lan/x\n    events: [arrived, charged]", "must be one of"),
 ])
 def test_the_config_refuses_a_webhook_without_an_http_url(tmp_path, entry, reason):
     path = tmp_path / "robot.yaml"

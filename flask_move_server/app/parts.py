@@ -92,6 +92,36 @@ class ServerParts:
         robot.recovery = recovery
         return recovery
 
+    def _build_docking(self, stack, robot, store):
+        """Docking onto the active map's charger (``dock/``); closed before the robot."""
+        from flask_move_server.dock.charge_signal import signal_of
+        from flask_move_server.dock.docking import Docking
+
+        cfg = self.config
+        charge = signal_of(cfg.dock, robot.battery)
+        if hasattr(charge, "close"):
+            stack.callback(charge.close)
+        docking = Docking(robot, cfg.dock, store.dock, charge, events=self.events,
+                          room_ahead=self._room_ahead(robot))
+        stack.callback(docking.close)
+        robot.docking = docking
+        return docking
+
+    def _room_ahead(self, robot):
+        """``room_ahead(reach)``: metres the laser shows clear before the footprint (the stuck watch's latest
+        scan), or None without one."""
+        recovery = robot.recovery
+        if recovery is None:
+            return None
+        from flask_move_server.recovery import footprint
+
+        def room_ahead(reach):
+            points = recovery.sensing.points(1.0) if recovery.sensing is not None else None
+            if not points:
+                return None
+            return footprint.room_along(points, recovery.footprint, reach, 0.0, way=1)
+        return room_ahead
+
     def _build_happenings(self, stack, robot):
         """What the robot did, by name (arrived, failed, run_done, estop, explore_done), for MQTT and for
         the webhooks ``webhooks:`` lists (POSTed from a queue of their own); both closed before the robot."""
@@ -321,6 +351,8 @@ def build_robot(config, node, drive, estop=None):
 
 
 def dock_position(store):
-    """(x, y) of the dock of the waypoints in use (the active map's), or None without one."""
+    """The Pose2D of the dock of the waypoints in use (the active map's), or None without one."""
+    from flask_move_server.core.geometry import Pose2D
+
     dock = store.dock()
-    return (dock.x, dock.y) if dock is not None else None
+    return Pose2D(dock.x, dock.y, dock.yaw) if dock is not None else None

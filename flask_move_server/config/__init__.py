@@ -265,7 +265,21 @@ class StuckConfig:
     quick_abort: float = checked(rules.positive, default=20.0)  # s: a goal aborted sooner, not moving, counts
 
 
-WEBHOOK_EVENTS = ("arrived", "failed", "run_done", "estop", "explore_done", "stuck")
+@dataclass
+class DockConfig:
+    """Docking onto the map's charger (docs/docking.md)."""
+
+    staging_distance: float = checked(rules.positive, default=0.4)  # m before the dock move_base stops at
+    approach_speed: float = checked(rules.positive, default=0.05)  # m/s onto the charger, straight
+    retries: int = checked(rules.positive, default=3)  # tries onto the charger before it gives up
+    return_below: float = checked(rules.fraction, default=0.2)  # go home below this charge (0..1)
+    resume_above: float = checked(rules.fraction, default=0.8)  # a paused run goes on above this
+    critical_below: float = checked(rules.fraction, default=0.1)  # goals other than home refused below
+    charge_detect: Literal["battery", "gpio", "none"] = "battery"  # what says it charges
+    charge_gpio: Optional[int] = checked(rules.gpio_pin, default=None)  # BCM pin, high while charging
+
+
+WEBHOOK_EVENTS = ("arrived", "failed", "run_done", "estop", "explore_done", "stuck", "docked", "dock_failed")
 
 
 @dataclass
@@ -341,6 +355,7 @@ class Config:
     diagnostics: DiagnosticsConfig = field(default_factory=DiagnosticsConfig)
     explore: ExploreConfig = field(default_factory=ExploreConfig)
     stuck: StuckConfig = field(default_factory=StuckConfig)
+    dock: DockConfig = field(default_factory=DockConfig)
     mqtt: MqttConfig = field(default_factory=MqttConfig)
     webhooks: List[WebhookConfig] = field(default_factory=list)
     battery: BatteryConfig = field(default_factory=BatteryConfig)
@@ -381,7 +396,18 @@ def load(path=None):
     base_dir = os.path.dirname(os.path.abspath(path))
     config = build(Config, data, source=str(path), base_dir=base_dir)
     config.source = str(path)
+    _check_dock(config.dock, config.source)
     return config
+
+
+def _check_dock(dock, source):
+    """The dock's settings that only make sense together."""
+    if dock.charge_detect == "gpio" and dock.charge_gpio is None:
+        raise ConfigError(source, "dock.charge_gpio", "charge_detect: gpio needs the BCM pin the charge-detect "
+                          "input is wired to")
+    if not dock.critical_below <= dock.return_below < dock.resume_above:
+        raise ConfigError(source, "dock.return_below", "must lie between critical_below ({}) and resume_above "
+                          "({})".format(dock.critical_below, dock.resume_above))
 
 
 def _read_yaml(path):

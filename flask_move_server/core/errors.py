@@ -142,6 +142,12 @@ class NoDock(MoveServerError, RuntimeError):
         super().__init__(message)
 
 
+class DockFailed(MoveServerError, RuntimeError):
+    """A docking that ended without the robot on its charger, or an undock of a robot not on one."""
+
+    code = "dock_failed"
+
+
 class Pressed(MoveServerError, RuntimeError):
     """A joystick command that would push the robot on against what it is pressed on."""
 

@@ -15,11 +15,15 @@ The names (the ``events`` a webhook lists, config.WEBHOOK_EVENTS) and their data
 - ``stuck``: the robot noticed it is stuck (``recovery/``): ``/status``'s ``stuck`` as it was then
   (``{"state", "message", "since", "place", "count", "freed"}``). Once each time, exploring too; a
   goal that then ends ``stuck`` is also ``failed``.
+- ``docked``: a docking (``POST /dock``, ``dock/``) brought the robot onto its charger; ``dock_failed``:
+  one gave up (at the staging pose, ``message`` says why). The data is ``/status``'s ``dock`` then
+  (``{"state", "place", "tries", "confirmed", "message"}``). Once per docking.
 
 A goal canceled (``POST /stop``, a run paused, teleop) or replaced by a newer goal is neither
 ``arrived`` nor ``failed``. While an exploration is under way its own goals (frontiers, the way
 home) are not told: move_base giving up on a frontier is part of exploring; ``explore_done`` says
-how it went. ``last_reached`` keeps the last waypoint reached (exploring too).
+how it went; nor are a docking's (its staging pose): ``docked`` or ``dock_failed`` says.
+``last_reached`` keeps the last waypoint reached (exploring too).
 
 Listeners are called as ``callback(name, data)`` in the thread where it happened (actionlib's, a
 request's, the run executor's): they must not block (the webhooks queue it); an exception is
@@ -36,9 +40,10 @@ from flask_move_server.missions.history import ENDED as RUN_ENDS
 
 log = logging.getLogger(__name__)
 
-ARRIVED, FAILED, RUN_DONE, ESTOP, EXPLORE_DONE, STUCK = (
-    "arrived", "failed", "run_done", "estop", "explore_done", "stuck")
-NAMES = (ARRIVED, FAILED, RUN_DONE, ESTOP, EXPLORE_DONE, STUCK)
+ARRIVED, FAILED, RUN_DONE, ESTOP, EXPLORE_DONE, STUCK, DOCKED, DOCK_FAILED = (
+    "arrived", "failed", "run_done", "estop", "explore_done", "stuck", "docked", "dock_failed")
+NAMES = (ARRIVED, FAILED, RUN_DONE, ESTOP, EXPLORE_DONE, STUCK, DOCKED, DOCK_FAILED)
+DOCKING = ("going", "approaching", "undocking")  # dock/docking.py: its own goal (the staging pose) is not told
 GOAL_FAILURES = ("aborted", "rejected", "lost", "stuck")  # the navigator reads a lost goal as aborted
 RUNS_REMEMBERED = 200  # run ids whose end was told: a late repeat of an ended run's event is not told again
 
@@ -67,12 +72,14 @@ class Happenings:
         self._explore_told = None  # (started, save_as) of the last exploration whose end was told
         self._estop_told = 0  # the latch's engagements when the last was told
         self._stuck_told = 0  # the stuck count when the last was told
+        self._dock_state = None  # the dock's state last heard
         robot.navigator.when_ended(self._goal_ended)
         robot.estop.when_engaged(self._estop_engaged)
         if events is not None:
             events.listen("run", self._run_changed)
             events.listen("explore", self._explore_changed)
             events.listen("stuck", self._stuck_changed)
+            events.listen("dock", self._dock_changed)
 
     def listen(self, callback):
         """Call ``callback(name, data)`` on every happening, in the thread where it happened (sometimes under
@@ -100,7 +107,7 @@ class Happenings:
         with self._lock:
             if state == "succeeded" and target is not None:
                 self._last_reached = {"name": target, "at": self._clock()}
-            exploring = self._exploring
+            exploring = self._exploring or self._dock_state in DOCKING
         if exploring:
             return
         if state == "succeeded":
@@ -153,6 +160,18 @@ class Happenings:
                 return
             self._stuck_told = stuck.get("count", 0)
         self._tell(STUCK, dict(stuck))
+
+    def _dock_changed(self, dock):
+        """The ``dock`` event: ``docked`` as a docking reaches the charger, ``dock_failed`` as one gives up."""
+        if not isinstance(dock, dict):
+            return
+        state = dock.get("state")
+        with self._lock:
+            before, self._dock_state = self._dock_state, state
+        if state in ("docked", "charging") and before in DOCKING:
+            self._tell(DOCKED, dict(dock))
+        elif state == "failed" and before != "failed":
+            self._tell(DOCK_FAILED, dict(dock))
 
     def _tell(self, name, data):
         with self._lock:

@@ -7,7 +7,14 @@ both and zeroes the velocity, the teleop deadman halts the motors at once, the
 e-stop latch stops everything and refuses goals and teleop until released).
 """
 
-from flask_move_server.core.errors import NavigationFailed, NavigationUnavailable, NotStuck, Pressed, ShuttingDown
+from flask_move_server.core.errors import (
+    NavigationFailed,
+    NavigationUnavailable,
+    NoDock,
+    NotStuck,
+    Pressed,
+    ShuttingDown,
+)
 from flask_move_server.drive.estop import EStop
 
 _SHUTTING_DOWN = "The server is shutting down: the robot was stopped. Send the command again once it is back."
@@ -38,6 +45,7 @@ class Robot:
         self.goal_gate = None  # modes/goal_gate.py, when this server runs the navigation stack
         self.ground_truth = None  # with --sim: the simulated robot's true pose (a callable), shown in /status
         self.recovery = None  # recovery/recovery.py: the stuck state, told of every goal and stop
+        self.docking = None  # dock/docking.py: home to the charger; a goal while docked backs off it first
 
     def goto(self, goal, via="POST /goto"):
         """Send the robot to ``goal``; returns the goal's sequence number. Ends a run under way, saying
@@ -51,12 +59,18 @@ class Robot:
             raise NavigationUnavailable("move_base does not answer, so the run's goal could not be sent.")
         return self._send(goal, None)
 
+    def dock_goal(self, goal):
+        """The docking's own goal (to the staging pose before the charger): as :meth:`run_goto`, ending nothing."""
+        return self._send(goal, None, docking=True)
+
     def goal_end(self, seq, timeout):
         """``(state, why)`` of goal ``seq`` once it ends or after ``timeout`` s (``active`` then); never raises."""
         return self.navigator.wait(seq, timeout)
 
-    def _send(self, goal, ends_run):
+    def _send(self, goal, ends_run, docking=False):
         self._refuse_motion("goals are")
+        if self.docking is not None and not docking:
+            self.docking.before_goal()  # off the charger first: move_base plans nothing from on top of it
         ticket = None
         if self.goal_gate is not None:
             self.navigator.check_ros()  # ROS down is the first reason, whatever the mode says
@@ -119,6 +133,8 @@ class Robot:
             self.runs.end_by(reason, wait_for_send)
         if self.explorer is not None:
             self.explorer.cancel(reason, wait_for_send)
+        if self.docking is not None:
+            self.docking.ended_by(reason)
 
     def cancel_goal(self, seq):
         """Cancel goal ``seq`` if it is still the one under way (a run's, paused or ended); zero velocity then."""
@@ -128,6 +144,8 @@ class Robot:
     def busy_with(self):
         """Why the robot is busy with something a schedule must not cut short (a goal, the joystick), or None."""
         teleop = self.teleop_control.status()
+        if self.docking is not None and self.docking.status()["state"] in ("going", "approaching", "undocking"):
+            return "The robot was docking at its charger."
         if teleop["active"]:
             return ("The robot was backing out of a tight spot." if teleop.get("by") == "back_out"
                     else "The robot was being driven by joystick.")
@@ -165,6 +183,8 @@ class Robot:
         if self.recovery is not None:
             self.recovery.check_push(linear)
         self._end_run("Driven by joystick (POST /teleop).")
+        if self.docking is not None:
+            self.docking.driven_off()
         if self.recovery is not None:
             self.recovery.owner_drives()
         self.drive.rearm()  # a deliberate command: motion after an e-stop release starts here
@@ -222,6 +242,7 @@ class Robot:
             "estop": self.estop.status(),
             "battery": self.battery_status(),
             "stuck": self.stuck_status(),
+            "dock": self.dock_status(),
             "ros": {"state": self.node.health, "master_uri": self.node.master_uri, "node": self.node.name,
                     "failed_parts": self.node.failed_parts},
             **self._simulated(),
@@ -233,6 +254,24 @@ class Robot:
             raise NotStuck("The stuck watch is off (stuck.enabled: false): drive the robot with the joystick.")
         self.recovery.back_out()
         return self.recovery.status()
+
+    def dock(self):
+        """Home to the charger and onto it (dock/docking.py): the dock status. NoDock without a charger."""
+        self._check_docking()
+        return self.docking.dock()
+
+    def undock(self):
+        """Back straight off the charger: the dock status. DockFailed when not on one."""
+        self._check_docking()
+        return self.docking.undock()
+
+    def dock_status(self):
+        """``/status`` ``dock`` (dock/docking.py), or None on a robot built without docking."""
+        return self.docking.status() if self.docking is not None else None
+
+    def _check_docking(self):
+        if self.docking is None:
+            raise NoDock("This server was started without docking.")
 
     def stuck_status(self):
         """``/status`` ``stuck`` (recovery/recovery.py), or None when the stuck watch is off."""

@@ -10,7 +10,7 @@ the Status sensor's attributes; the next command that is taken clears it. Pure: 
 import datetime
 import logging
 
-from flask_move_server.core.errors import MoveServerError, NoDock, RunConflict
+from flask_move_server.core.errors import MoveServerError, RunConflict
 from flask_move_server.core.geometry import Goal, Pose2D
 from flask_move_server.process.log_limits import Throttled
 
@@ -57,11 +57,9 @@ class Commands:
         self._lines.info("MQTT: goal %d to %s", seq, waypoint.name)
 
     def dock(self, _payload):
-        """The Dock button: to the map's dock, whatever its name."""
-        dock = self._store.dock()
-        if dock is None:
-            raise NoDock()
-        self.goto(dock.name, "dock/press")
+        """The Dock button: home onto the map's charger, whatever its name (dock/docking.py); NoDock without one."""
+        status = self._robot.dock()
+        self._lines.info("MQTT: docking at %s", status["place"])
 
     def route(self, name):
         route = self._store.get_route(name[:MAX_NAME])

@@ -32,7 +32,8 @@ BUTTONS = (("stop", "Stop", "mdi:stop"), ("dock", "Dock", "mdi:home-import-outli
 SENSORS = (("target", "Target", "mdi:map-marker-path", "value_json.target"),
            ("mode", "Mode", "mdi:robot", "value_json.mode"),
            ("map", "Map", "mdi:map", "value_json.map"),
-           ("last_reached", "Last reached", "mdi:map-marker-check", "value_json.last_reached"))
+           ("last_reached", "Last reached", "mdi:map-marker-check", "value_json.last_reached"),
+           ("dock", "Dock", "mdi:ev-station", "value_json.dock"))
 
 
 def discovery(prefix, root, robot, device, waypoints, routes, battery_known, enabled=True, vda_connection=None):

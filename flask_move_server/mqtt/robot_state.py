@@ -1,7 +1,7 @@
 """``<root>/state``: what the robot is doing, one retained JSON object, told when it changes.
 
 ``{"status", "message", "mode", "map", "target", "last_reached", "run", "estop", "pose",
-"battery", "refused"}`` (docs/home-assistant.md). One thread builds it once a second and at once
+"battery", "dock", "refused"}`` (docs/home-assistant.md). One thread builds it once a second and at once
 when something is told on the event bus (a mode, a map, waypoints, a run, an exploration, the
 e-stop, a goal's end) and publishes it when it differs from the last one told. The pose alone
 changing is told at most once a second (``POSE_PERIOD``), and never more than ``MIN_PERIOD``
@@ -23,7 +23,9 @@ log = logging.getLogger(__name__)
 PERIOD = 1.0  # s between looks when nothing is told
 POSE_PERIOD = 1.0  # s: a moving robot's pose, at most this often
 MIN_PERIOD = 0.2  # s between two states, whatever changed
-WAKING_KINDS = ("mode", "map", "waypoints", "run", "explore", "estop", "stuck")
+WAKING_KINDS = ("mode", "map", "waypoints", "run", "explore", "estop", "stuck", "dock")
+DOCKING = ("going", "approaching", "undocking")  # dock/docking.py's states under way: "docking"
+ON_THE_DOCK = ("docked", "charging")
 RUNNING_EXPLORATION = ("starting", "exploring", "returning", "saving")
 NAVIGATION_STATUS = {"active": "moving", "canceling": "moving", "succeeded": "arrived", "aborted": "failed",
                      "rejected": "failed", "lost": "failed", "canceled": "stopped", "stuck": "stuck"}
@@ -103,10 +105,11 @@ class RobotState:
         exploring = self._exploring()
         stuck = status.get("stuck") or {}
         stuck = stuck if stuck.get("state") not in (None, "free") else None
+        dock = (status.get("dock") or {}).get("state")
+        told = _status(nav, status.get("teleop") or {}, estop, run, exploring, dock)
         return {
-            "status": "stuck" if stuck and not estop else _status(nav, status.get("teleop") or {}, estop, run,
-                                                                   exploring),
-            "message": stuck["message"] if stuck else nav.get("message"),
+            "status": "stuck" if stuck and not estop else told,
+            "message": stuck["message"] if stuck else _message(nav, status.get("dock"), told),
             "mode": mode.get("mode"),
             "map": mode.get("map"),
             "target": nav.get("target") if nav.get("state") in ("active", "canceling") else None,
@@ -115,6 +118,7 @@ class RobotState:
             "estop": estop,
             "pose": _pose(status.get("pose")),
             "battery": status.get("battery"),
+            "dock": dock,
             "refused": self._refused(),
         }
 
@@ -133,20 +137,31 @@ def _but_battery(state):
     return dict(state, battery=None)
 
 
-def _status(nav, teleop, estop, run, exploring):
-    """One word for what the robot does: estop, exploring, paused, moving, teleop, arrived, failed, stopped, idle
-    (``stuck`` comes before it all but the e-stop: see build)."""
+def _status(nav, teleop, estop, run, exploring, dock=None):
+    """One word for what the robot does: estop, exploring, paused, docking, moving, teleop, charging, docked,
+    arrived, failed, stopped, idle (``stuck`` comes before it all but the e-stop: see build)."""
     if estop:
         return "estop"
     if exploring:
         return "exploring"
     if run is not None and run["state"] in ("paused", "stuck"):
         return run["state"]
+    if dock in DOCKING:
+        return "docking"
     if nav.get("state") in ("active", "canceling"):
         return "moving"
     if teleop.get("active"):
         return "teleop"
+    if dock in ON_THE_DOCK:
+        return dock
     return NAVIGATION_STATUS.get(nav.get("state"), "idle")
+
+
+def _message(nav, dock, told):
+    """The docking's words while it docks or is docked (or failed), else move_base's."""
+    if dock and (told in ("docking", "charging", "docked") or dock.get("state") == "failed"):
+        return dock.get("message")
+    return nav.get("message")
 
 
 def _run_summary(run):

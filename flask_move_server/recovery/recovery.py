@@ -140,8 +140,9 @@ class Recovery(WayOut):
         if seq is not None and self._nav.hold(seq, words.blocked(where)):
             self._stuck(seq, words.blocked(where), where)
             return
-        if not self._robot.teleop_control.status()["active"]:
-            return  # nobody drives it now (a goal that just ended): nothing to say
+        teleop = self._robot.teleop_control.status()
+        if not teleop["active"] or teleop["by"] == "dock":
+            return  # nobody drives it now (a goal that just ended), or it touches its charger: nothing to say
         stop = self._robot.teleop_control.stop
         stop()  # the motors strain against a wall: stop commanding
         way = self.sensing.came() if self.sensing is not None else None

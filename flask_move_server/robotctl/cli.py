@@ -16,6 +16,7 @@ import traceback
 from flask_move_server import __version__
 from flask_move_server.core.errors import ClientError
 from flask_move_server.core.goal_endings import failure_sentence, replaced_sentence
+from flask_move_server.robotctl import dock as client_dock
 from flask_move_server.robotctl import doctor as client_doctor
 from flask_move_server.robotctl import maps as client_maps
 from flask_move_server.robotctl import modes as client_modes
@@ -228,6 +229,7 @@ def build_parser():
                    help="with --wait: give up waiting after S seconds (exit 12)")
     p.set_defaults(run=cmd_goto)
     sub.add_parser("stop", help="cancel the goal and stop").set_defaults(run=cmd_stop)
+    client_dock.add_parsers(sub, _positive)
     sub.add_parser("back-out", help="a robot that says it is stuck backs out by itself").set_defaults(
         run=cmd_back_out)
     p = sub.add_parser("estop", help="latch the e-stop ('estop release' lifts it)")

@@ -30,6 +30,7 @@ log = logging.getLogger(__name__)
 # sensor_msgs/BatteryState power_supply_status
 CHARGING, DISCHARGING, NOT_CHARGING, FULL = 1, 2, 3, 4
 CHARGING_STATES = {CHARGING: True, DISCHARGING: False, NOT_CHARGING: False, FULL: False}
+SUPPLY = {CHARGING: "charging", FULL: "full", DISCHARGING: "off", NOT_CHARGING: "off"}  # for docking
 SLACK = 0.005  # a percentage this far outside 0..1 is float rounding, clamped; farther is nonsense
 
 
@@ -40,7 +41,7 @@ class BatteryMonitor:
         self.topic = topic
         self._clock = clock
         self._lock = threading.Lock()
-        self._reading = None  # (percentage, voltage, charging, monotonic time heard)
+        self._reading = None  # (percentage, voltage, charging, monotonic time heard, supply)
         self._warned = set()  # the kinds of bad value already logged
         self._subscriber = None
         self._closed = False
@@ -53,7 +54,7 @@ class BatteryMonitor:
 
     def _on_message(self, msg):
         reading = (self._percentage(msg.percentage), self._voltage(msg.voltage),
-                   CHARGING_STATES.get(msg.power_supply_status), self._clock())
+                   CHARGING_STATES.get(msg.power_supply_status), self._clock(), SUPPLY.get(msg.power_supply_status))
         with self._lock:
             self._reading = reading
 
@@ -63,9 +64,18 @@ class BatteryMonitor:
             reading = self._reading
         if reading is None:
             return None
-        percentage, voltage, charging, heard = reading
+        percentage, voltage, charging, heard, _ = reading
         return {"percentage": percentage, "voltage": voltage, "charging": charging,
                 "age": round(max(0.0, self._clock() - heard), 1)}
+
+    def supply(self, max_age):
+        """What the latest reading says of the charger: ``"charging"`` (CHARGING), ``"full"`` (FULL), ``"off"``
+        (DISCHARGING, NOT_CHARGING), or None (UNKNOWN, no reading, or one older than ``max_age`` s)."""
+        with self._lock:
+            reading = self._reading
+        if reading is None or self._clock() - reading[3] > max_age:
+            return None
+        return reading[4]
 
     def _percentage(self, value):
         if not _finite(value):

@@ -3,7 +3,7 @@
 ``BatteryModel`` (pure) keeps the charge, 0..1. Each step of simulated time it loses
 ``REST_DRAIN`` a second (the Pi, the lidar) plus ``DRIVE_DRAIN`` per metre the wheels roll (their
 mean ground speed, so a turn on the spot costs too), and gains ``CHARGE_RATE`` a second instead
-while the robot stands (wheels still) within ``DOCK_RADIUS`` of the map's dock, up to full.
+while the robot stands (wheels still) with its contacts on the charger's, up to full.
 At the robot's cruise speed (0.3 m/s) that is about 2 % a minute: 100 % to 60 % in 20 minutes of
 driving, and +1 % every 10 s on the dock, so the demo shows a change within minutes.
 
@@ -13,18 +13,22 @@ robot moves) and publishes ``sensor_msgs/BatteryState`` on ``battery.topic`` at 
 percentage 0..1, a 3-cell Li-ion voltage that follows the charge, and
 ``power_supply_status`` CHARGING on the dock, FULL on the dock at 100 %, DISCHARGING elsewhere.
 
-Where the dock is comes from a callable the server gives (the active map's ``dock`` waypoint, in
-the map frame: the simulated world's frame on maps drawn true or built by the simulated SLAM);
-the robot's true pose, not what localization believes, decides whether it stands on the dock.
+Where the dock is comes from a callable the server gives (the active map's dock, the waypoint
+marked as the charger, in the map frame: the simulated world's frame on maps drawn true or built
+by the simulated SLAM). The charger is as strict as a real one (:func:`on_contacts`): the robot's
+*true* pose, not what localization believes, must stand on the dock's pose within a few
+centimetres sideways and a few degrees of yaw, touching (``CONTACTS``); a sloppy approach, or one
+on a wrong belief, does not charge.
 """
 
 import logging
-import math
 import threading
 import time
 
 import rospy
 from sensor_msgs.msg import BatteryState
+
+from flask_move_server.core.geometry import compose, inverse, normalize_angle
 
 log = logging.getLogger(__name__)
 
@@ -32,7 +36,9 @@ START = 0.87  # the charge the simulated robot starts with (sim.battery_start)
 REST_DRAIN = 0.002 / 60.0  # a second, standing: 0.2 % a minute
 DRIVE_DRAIN = 0.001  # a metre the wheels roll: 1 % every 10 m
 CHARGE_RATE = 0.001  # a second on the dock: 1 % every 10 s
-DOCK_RADIUS = 0.3  # m from the dock (the waypoint marked as the charger)
+CONTACTS = (-0.03, 0.05, 0.04, 0.09)  # the charger's contacts touch the robot's: m along the dock's line
+# from (before it) and to (the sim has no charger's body to stop the robot: driven on past the dock, a
+# real robot would stand pressed on it, its sprung contacts touching), m sideways either way, rad of yaw
 STILL = 0.005  # m/s: wheels slower than this stand still
 CELLS = 3
 CELL_EMPTY, CELL_FULL = 3.3, 4.2  # V a cell, at 0 % and 100 %
@@ -69,12 +75,19 @@ class BatteryModel:
         return CELLS * (CELL_EMPTY + (CELL_FULL - CELL_EMPTY) * self.charge)
 
 
+def on_contacts(dock, pose):
+    """True when the robot at ``pose`` (its true pose) touches the charger at ``dock`` (a Pose2D)."""
+    off = compose(inverse(dock), pose)
+    behind, past, sideways, turned = CONTACTS
+    return behind <= off.x <= past and abs(off.y) <= sideways and abs(normalize_angle(off.yaw)) <= turned
+
+
 class SimBattery:
     """Steps a :class:`BatteryModel` in a thread and publishes it as ``sensor_msgs/BatteryState``."""
 
     def __init__(self, topic, node, wheel_speeds, pose, dock, clock, model=None):
         """``wheel_speeds()``: (left, right) m/s; ``pose()``: the robot's true Pose2D; ``dock()``: the
-        dock's (x, y) in the same frame, or None when there is none; ``clock()``: the world's simulated
+        dock's Pose2D in the same frame, or None when there is none; ``clock()``: the world's simulated
         seconds (``SimWorld.clock.now``), so the battery drains as the world advances, not as real time does."""
         self.topic = topic
         self.model = model or BatteryModel()
@@ -118,8 +131,7 @@ class SimBattery:
             return False
         if dock is None:
             return False
-        pose = self._pose()
-        return math.hypot(pose.x - dock[0], pose.y - dock[1]) <= DOCK_RADIUS
+        return on_contacts(dock, self._pose())
 
     def message(self):
         """The model now as a ``sensor_msgs/BatteryState``."""

@@ -40,7 +40,7 @@ class Simulation:
     start the real ones (on a PC with ROS Noetic's navigation packages), ``lidar:=false``.
 
     In both, the robot's battery (``sim/battery.py``) publishes on ``battery.topic``; ``dock()``
-    says where the dock is (x, y), or None: the battery charges there.
+    says where the dock is (a Pose2D), or None: the battery charges on it.
     """
 
     def __init__(self, config, node, drive, autostart=True, dock=None):

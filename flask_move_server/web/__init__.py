@@ -12,6 +12,7 @@ from flask_move_server.modes.manager import ModeManager
 from flask_move_server.process import ast_guard
 from flask_move_server.web import auth, error_handlers, guard
 from flask_move_server.web.diagnostics import diagnostics_api
+from flask_move_server.web.dock import docking
 from flask_move_server.web.estop import estop
 from flask_move_server.web.events import events_api
 from flask_move_server.web.explore import explore_api
@@ -101,6 +102,7 @@ def create_app(config, robot, store, token=None, events=None, modes=None, maps=N
     app.register_blueprint(api)
     app.register_blueprint(estop)
     app.register_blueprint(stuck)
+    app.register_blueprint(docking)
     app.register_blueprint(maps_api)
     app.register_blueprint(missions_api)
     app.register_blueprint(explore_api)

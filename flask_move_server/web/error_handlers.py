@@ -34,6 +34,7 @@ STATUS = (
     (errors.NotStuck, 409),
     (errors.Pressed, 409),
     (errors.NoDock, 409),
+    (errors.DockFailed, 409),
     (errors.ExploreConflict, 409),
     (errors.NoPose, 409),
     (errors.WaypointsLocked, 503),

@@ -52,6 +52,11 @@ def build(config):
         "/stuck/back_out": {"post": _operation(
             "A robot that said it is stuck and waits for its owner backs out by itself (docs/stuck.md)", NO_FIELDS,
             {202: _ok({"stuck": _ref("Stuck")})}, errors=(409,), body_optional=True)},
+        "/dock": {"post": _dock(config.navigation.max_wait)},
+        "/undock": {"post": _operation(
+            "Back straight off the charger to the staging pose (docs/docking.md)",
+            _object({"valid_until": VALID_UNTIL}),
+            {202: _ok({"dock": _ref("Dock")})}, errors=(409, 503), body_optional=True)},
         "/waypoints": {"get": _operation("List the waypoints", None, {200: _json(_object(
             {"waypoints": {"type": "array", "items": _ref("Waypoint")}}))})},
         "/waypoints/{name}": _waypoint_item(),
@@ -99,6 +104,17 @@ def _goto(max_wait):
     return _operation("Send the robot to a waypoint or a pose", {"oneOf": [by_name, by_pose]},
                       {200: _json(answer, "arrived (with wait)"), 202: _json(answer, "on its way")},
                       errors=(404, 409, 503))
+
+
+def _dock(max_wait):
+    wait = {"type": "number", "minimum": 0, "maximum": max_wait,
+            "description": "seconds to wait until it is on the charger before answering (at most navigation.max_wait)"}
+    answer = _ok({"dock": _ref("Dock")})
+    return _operation("Home onto the map's charger (docs/docking.md)",
+                      _object({"wait": wait, "valid_until": VALID_UNTIL}),
+                      {200: _json(answer["content"]["application/json"]["schema"], "on the charger (with wait)"),
+                       202: _json(answer["content"]["application/json"]["schema"], "on its way")},
+                      errors=(409, 503), body_optional=True)
 
 
 def _teleop():
@@ -391,14 +407,16 @@ def _status():
     schema["properties"] = {"battery": {"allOf": [_ref("Battery")], "nullable": True,
                                         "description": "null until a sensor_msgs/BatteryState was heard"},
                             "stuck": {"allOf": [_ref("Stuck")], "nullable": True,
-                                      "description": "null with stuck.enabled false"}}
+                                      "description": "null with stuck.enabled false"},
+                            "dock": _ref("Dock")}
     return schema
 
 
 def _events():
-    stream = {"description": "Server-Sent Events: 'event: <kind>' (pose, status, estop, battery, stuck, plan, scan, "
-                             "mode, map, waypoints, run, explore, clock) and 'data: <one JSON object>', the latest of "
-                             "each kind first; a clock event every 2 s. docs/api.md lists each kind's fields.",
+    stream = {"description": "Server-Sent Events: 'event: <kind>' (pose, status, estop, battery, stuck, dock, plan, "
+                             "scan, mode, map, waypoints, run, explore, clock) and 'data: <one JSON object>', the "
+                             "latest of each kind first; a clock event every 2 s. docs/api.md lists each kind's "
+                             "fields.",
               "content": {"text/event-stream": {"schema": {"type": "string"}}}}
     return _operation("The robot's state as it changes (Server-Sent Events)", None, {200: stream}, errors=(503,))
 

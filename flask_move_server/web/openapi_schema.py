@@ -16,7 +16,7 @@ ERROR_CODES = {
     405: "method_not_allowed: the path takes other methods (the Allow header lists them)",
     409: "navigation_failed (with state), no_pose, command_late, estop_latched, estop_button_pressed, waypoints_file, "
          "wrong_mode, map_exists, map_in_use, map_configured, mode_switching, modes_off, waypoint_in_use, "
-         "run_conflict, explore_conflict, not_stuck, pressed, map_full",
+         "run_conflict, explore_conflict, not_stuck, pressed, map_full, no_dock, dock_failed",
     413: "body_too_large: the body is over server.max_body_bytes",
     503: "ros_unavailable, move_base_unavailable, drive_error, shutting_down, waypoints_locked, map_file, "
          "no_map_received, stack_failed, too_many_streams",
@@ -76,9 +76,16 @@ def _components(max_body_bytes):
                      "count": {"type": "integer", "description": "times it was stuck since the server started"},
                      "freed": {"type": "integer", "description": "times it backed out by itself and went on"}},
                     ["state", "message", "since", "place", "waiting", "count", "freed"])
+    dock = _object({"state": {"enum": ["undocked", "going", "approaching", "docked", "charging", "undocking",
+                                       "failed"]},
+                    "place": {"type": "string", "nullable": True, "description": "the charger's place, while docking"},
+                    "tries": {"type": "integer", "description": "tries onto the charger of this docking"},
+                    "confirmed": {"type": "boolean", "description": "docked: the charger said it charges"},
+                    "message": {"type": "string", "nullable": True, "description": "what it does, in words"}},
+                   ["state", "place", "tries", "confirmed", "message"])
     return {
         "schemas": {"Error": error, "Pose": pose, "Waypoint": waypoint, "EStop": estop, "Battery": battery,
-                    "Stuck": stuck},
+                    "Stuck": stuck, "Dock": dock},
         "responses": responses,
         "securitySchemes": {"bearer": {"type": "http", "scheme": "bearer",
                                        "description": "needed when the robot has a token"}},

@@ -5,6 +5,9 @@
 // When a call answers 401 the page asks for the token once (every call waiting on that answer
 // shares the one question), keeps it in localStorage on this device and tries the call again.
 
+/** The page's element of id `id` (every module's `$`). */
+export const $ = (id) => document.getElementById(id);
+
 const TOKEN_KEY = "robotToken";
 let token = localStorage.getItem(TOKEN_KEY) || "";
 let asking = null;

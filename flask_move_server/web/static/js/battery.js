@@ -2,7 +2,7 @@
 // battery drawn as full as it is, a bolt while it charges; hidden while the robot has no reading
 // (a robot without a fuel gauge). A robot that tells only its voltage shows "12.1 V". Greyed
 // when the reading is old (its publisher stopped); a tap says it in words ("Battery 62 %, charging").
-const $ = (id) => document.getElementById(id);
+import {$} from "./api.js";
 const OLD_S = 30;  // the robot tells the reading again once it is this old (reporter.BATTERY_OLD)
 const LOW = 20;  // %: at or below, the chip turns red
 

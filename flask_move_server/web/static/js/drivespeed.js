@@ -1,8 +1,8 @@
 // How fast the joystick and the keys drive: a speed setting (a share of the robot's own limits,
 // which /status tells as teleop.max_linear and max_angular, and which the server clamps to
 // anyway) and a Slow mode for tight spots, both kept on this device.
+import {$} from "./api.js";
 
-const $ = (id) => document.getElementById(id);
 const SPEED_KEY = "robotDriveSpeed";  // percent of the robot's limit
 const SLOW_KEY = "robotDriveSlow";
 const SLOW_PERCENT = 25;

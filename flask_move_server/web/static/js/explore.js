@@ -2,13 +2,12 @@
 // strip under the goal line that follows an exploration in plain words, with Stop; the spot the robot
 // is driving to is drawn on the map. Fed by `explore` events and, after every (re)connect, GET /explore.
 // How one ended stays on the strip (OK closes it), but only for an exploration this page saw under way.
-import {api} from "./api.js";
+import {api, $} from "./api.js";
 import {clearError} from "./notice.js";
 import {askMapName, confirmReplace, replaceable} from "./panels.js";
 import {endedBy, sentence} from "./runwords.js";
 import {withoutApi} from "./words.js";
 
-const $ = (id) => document.getElementById(id);
 const ACTIVE = ["starting", "exploring", "returning", "saving"];
 let ctx = null;  // {setOff, stop, report, map} from main.js
 let shown = null;  // the exploration on the strip

@@ -1,8 +1,7 @@
 // The Health panel: the first-boot doctor (GET /diagnostics), one row per check in colour, what
 // needs doing listed first with what to do under it, and the guided box test of the laser's yaw.
-import {api} from "./api.js";
+import {api, $} from "./api.js";
 
-const $ = (id) => document.getElementById(id);
 const WORDS = {pass: "OK", warn: "Check", fail: "Fix", skip: "n/a"};
 const NAMES = {
   scan: "Lidar", scan_range: "Lidar range", tf: "Frames (tf)", odom: "Odometry", move_base: "Planner",

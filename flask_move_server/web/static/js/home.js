@@ -1,22 +1,30 @@
-// The Home button (as Valetudo has it): sends the robot to the map's dock, the place marked as
-// its charger (any name). Without one it stays on screen, greyed, and a tap says how to mark one.
-
-const $ = (id) => document.getElementById(id);
+// Home (as Valetudo has it): docks onto the map's charger, the place marked as the dock (POST /dock),
+// and says what docking does ("Charging"; its words on the status line). No dock: greyed; a tap says why.
+import {$} from "./api.js";
 const NO_DOCK = "This map has no charger marked. Drive the robot onto it, then mark that place " +
   "as the dock (PUT /waypoints/<name> with \"dock\": true).";
+const LABEL = {going: "Going home", approaching: "Docking", docked: "Docked", charging: "Charging",
+  undocking: "Undocking"};
+let dock = null, said = null;
 
-export function initHome({sendGoal, map, report}) {
+export function initHome({move, map, report}) {
   const home = $("home");
-  let dock = null;
-  const showDock = (waypoints) => {
+  map.onWaypoints = (waypoints) => {
     dock = waypoints.find((w) => w.dock) || null;
     home.setAttribute("aria-disabled", String(!dock));
-    home.title = dock ? "Go to the dock: " + dock.name : NO_DOCK;
+    home.title = dock ? "Dock at " + dock.name : NO_DOCK;
   };
-  map.onWaypoints = showDock;
-  showDock(map.waypoints);
-  home.onclick = () => {
-    if (!dock) { report(new Error(NO_DOCK)); return; }
-    sendGoal({name: dock.name}).catch(() => {});  // late on a stalled Wi-Fi: refused by the robot, as every goal
-  };
+  map.onWaypoints(map.waypoints);
+  home.onclick = () => dock ? move("/dock", {}).catch(() => {}) : report(new Error(NO_DOCK));
 }
+
+/** Shows `/status` `dock` or a `dock` event ({state, message, ...}, or null). */
+export function showDock(d) {
+  const state = d ? d.state : "";
+  said = state && state !== "undocked" ? d.message : null;
+  $("home").textContent = LABEL[state] || "Home";
+  $("home").setAttribute("aria-pressed", String(state === "docked" || state === "charging"));
+}
+
+/** The docking's words while it docks, is docked or failed, else null: the status line's. */
+export const dockWords = () => said;

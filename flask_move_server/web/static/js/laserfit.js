@@ -3,7 +3,7 @@
 // is its belief, not evidence: issue 33). While navigating, a yellow banner says so when for two
 // seconds under half the dots lie within a cell of a wall, with "Set position". The Pose gesture
 // shows the laser at the dragged pose, and its share on the walls, to line the dots up.
-const $ = (id) => document.getElementById(id);
+import {$} from "./api.js";
 
 const WARN_BELOW = 0.5;   // the share of dots on walls under which the position is clearly wrong
 const CLEAR_AT = 0.7;     // ... and at or over which the warning goes again

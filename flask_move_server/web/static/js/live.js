@@ -146,6 +146,7 @@ export class Live {
         this.emit("status", status);
         if (status.estop) this.emit("estop", status.estop);
         this.emit("battery", status.battery);
+        this.emit("dock", status.dock);
         if (round % 10 === 0) this.pollSlowly();
       } catch (e) {
         this.setState("reconnecting");

@@ -1,5 +1,5 @@
 // The phone page: wires the live feed, the map, the joystick and the panels to the API.
-import {api, authorisedFetch, askTokenAgain} from "./api.js";
+import {api, authorisedFetch, askTokenAgain, $} from "./api.js";
 import {Joystick, KeyDrive} from "./joystick.js";
 import {Live} from "./live.js";
 import {MapView} from "./mapview.js";
@@ -11,7 +11,7 @@ import {withoutApi} from "./words.js";
 import {initPlaces, loadWaypoints, markPlace} from "./places.js";
 import {initOverlays} from "./overlays.js";
 import {initDriveSpeed} from "./drivespeed.js";
-import {initHome} from "./home.js";
+import {initHome, showDock, dockWords} from "./home.js";
 import {initWhereabouts, showWhereabouts, noMapInUse} from "./whereabouts.js";
 import {initRoutes, loadRoutes, showPastRuns} from "./routes.js";
 import {initRunStrip, loadRuns, tellRun} from "./runstrip.js";
@@ -20,13 +20,12 @@ import {showBattery} from "./battery.js";
 import {initStuck, showStuck} from "./stuck.js";
 import {initLaserFit, laserFitMode} from "./laserfit.js";
 
-const $ = (id) => document.getElementById(id);
 const map = new MapView($("map"), {overlays: [$("gesture")]});
 const live = new Live();
 const stopping = new StopSender($("stop"));
 let mapVersion = null, mapEtag = null;
 
-// ---- errors and the status line -------------------------------------------------------
+// -- errors and the status line --
 
 /** An API call whose outcome the person sees: an error in words for people (`what` says what was
  *  tried: "goal", "pose", …), and a success clears the error of the call before. */
@@ -88,13 +87,20 @@ function showNavigation(nav) {
   if (!going) map.setPlan([]);
 }
 
+function tellDock() {
+  const words = dockWords();
+  if (words) { $("nav-text").textContent = $("nav-text").title = words; $("nav").dataset.state = "dock"; }
+}
+function dockShown(d) { showDock(d); tellDock(); }
+
 function showStatus(status) {
   if (status.navigation) showNavigation(status.navigation);
   if ("stuck" in status) showStuck(status.stuck);  // /status (the stream tells it as `stuck` events)
-  if (status.teleop && status.teleop.active && status.teleop.by !== "back_out") {  // a goal the joystick cancelled is not news while driving
+  if (status.teleop && status.teleop.active && status.teleop.by === "owner") {  // a goal the joystick cancelled is not news while driving
     $("nav-text").textContent = "driving with the joystick";
     $("nav").dataset.state = "teleop";
   }
+  tellDock();
   const m = status.motors;
   if (m) {
     $("motors").dataset.left = String(m.left);
@@ -113,7 +119,7 @@ function showEstop(estop) {
 }
 const latched = () => document.body.dataset.estop === "1";
 
-// ---- the map, the waypoints ------------------------------------------------------------
+// -- the map, the waypoints --
 
 let mapLoads = 0;  // only the newest of overlapping loads may draw (map events can come quickly while mapping)
 
@@ -190,7 +196,7 @@ function showStaleNote() {
   $("stale-note").textContent = note;
 }
 
-// ---- live state -----------------------------------------------------------------------
+// -- live state --
 
 const isLive = () => live.state === "live" || live.state === "polling";
 
@@ -229,6 +235,7 @@ function resync() {
     showStatus(s);
     if (s.estop) showEstop(s.estop);
     showBattery(s.battery);
+    dockShown(s.dock);
   }));
   askMode(() => api("GET", "/mode")).then(showModes, (e) => { if (e.status === 404) $("mode").textContent = "robot"; });
   quietly(loadWaypoints());
@@ -254,10 +261,11 @@ live.on("run", (run) => {
 });
 live.on("explore", tellExploration);
 live.on("stuck", showStuck);
+live.on("dock", dockShown);
 live.on("map", (m) => { if (m.version !== mapVersion) quietly(loadMap()); });
 live.on("mode", (m) => { showModeEvent(m); showModes(m); quietly(loadMaps()); quietly(loadMap()); });
 
-// ---- controls -------------------------------------------------------------------------
+// -- controls --
 
 // Driving: one teleop request at a time (a slow link skips a beat rather than queueing them), and
 // a stop sent at once and again once a teleop still on its way has landed, which could otherwise
@@ -304,7 +312,7 @@ initHealth();
 initNotices();
 initOverlays({live, map});
 initDriveSpeed({live, joystick, keys});
-initHome({sendGoal, map, report});
+initHome({move, map, report});
 initWhereabouts({call, setGesture});
 initRunStrip({call, move, map, onRuns: showPastRuns});
 initRoutes({call, move, isLive, map, setGesture});

@@ -72,7 +72,7 @@ function drawPlan(v, ctx) {
   ctx.stroke();
 }
 
-// ---- waypoints: a dot with a heading tick, and a label placed where it hides nothing ---------------
+// -- waypoints: a dot with a heading tick, and a label placed where it hides nothing --
 
 const MARKER_R = 7, TICK_PX = 17;     // the dot's radius; the heading tick reaches this far from its centre
 const LABEL_FONT = "bold 14px system-ui, sans-serif", LABEL_H = 16;

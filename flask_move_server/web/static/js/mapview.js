@@ -55,7 +55,7 @@ export class MapView {
     requestAnimationFrame(this.frame);
   }
 
-  // ---- what it shows -------------------------------------------------------------------
+  // -- what it shows --
 
   /** Shows the map `GET /map` describes (`meta`) as `image`; null: no map in use now. */
   setMap(meta, image) {
@@ -140,7 +140,7 @@ export class MapView {
     return !r || r.age > STALE_AGE_S || performance.now() - r.at > SILENT_MS || Boolean(this.offline);
   }
 
-  // ---- view ----------------------------------------------------------------------------
+  // -- view --
 
   resize() {
     const ratio = window.devicePixelRatio || 1;
@@ -208,7 +208,7 @@ export class MapView {
     this.view.oy = sy + y * this.view.scale;
   }
 
-  // ---- gestures ------------------------------------------------------------------------
+  // -- gestures --
 
   listen() {
     const c = this.canvas;
@@ -298,7 +298,7 @@ export class MapView {
     return best;
   }
 
-  // ---- drawing -------------------------------------------------------------------------
+  // -- drawing --
 
   frame(now) {
     this.ease(now);

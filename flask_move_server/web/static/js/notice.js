@@ -2,8 +2,8 @@
 // page's own words (words.js), and a short "done" note. Every panel reports through here, so the
 // wording and the timing are one. A command that succeeds clears the error of the one before.
 import {words} from "./words.js";
+import {$} from "./api.js";
 
-const $ = (id) => document.getElementById(id);
 let errorTimer = null;
 let doneTimer = null;
 

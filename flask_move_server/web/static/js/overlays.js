@@ -3,8 +3,8 @@
 // the trail of the poses this page was told, cleared when the map in use changes (at the switch's
 // start and again once it runs, so no pose of the old map's frame is joined to the new one). A button over
 // the map hides the scan; the choice is kept on this device.
+import {$} from "./api.js";
 
-const $ = (id) => document.getElementById(id);
 const SHOW_SCAN_KEY = "robotShowScan";
 
 export function initOverlays({live, map}) {

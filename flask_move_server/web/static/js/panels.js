@@ -2,11 +2,10 @@
 // save the growing map, the maps with thumbnails to navigate on, rename or delete, relocalize.
 // The map the stack was configured with (the demo's) is listed too ("source": "configured"):
 // it can be used again, not renamed nor deleted; /mode calls it map null.
-import {api, authorisedFetch} from "./api.js";
+import {api, authorisedFetch, $} from "./api.js";
 import {withoutApi} from "./words.js";
 import {notify} from "./notice.js";
 
-const $ = (id) => document.getElementById(id);
 let ctx = null;
 const thumbnails = new Map();  // map name + modified -> object URL, so a list refresh does not refetch
 

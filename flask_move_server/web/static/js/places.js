@@ -1,10 +1,9 @@
 // The Places panel and the places on the map: the list (Go, Rename, Delete), Mark here, and a
 // place marked by a press on the map. The list and the map's markers are drawn from one read.
 import {rowButton} from "./buttons.js";
-import {api} from "./api.js";
+import {api, $} from "./api.js";
 import {notify} from "./notice.js";
 
-const $ = (id) => document.getElementById(id);
 const quietly = (promise) => promise.catch(() => {});
 // A name as the robot keeps it: NFC, so "Küche" typed on a Mac (u + ¨) is the one typed on a phone.
 const typedName = (text) => (text || "").trim().normalize("NFC");

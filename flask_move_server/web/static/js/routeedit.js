@@ -3,8 +3,8 @@
 // what a place that cannot be reached does, and the times it runs by itself. Save is one PUT; a
 // route given a new name is saved under it first, then the old one deleted (never lost half-way).
 import {notify, report} from "./notice.js";
+import {$} from "./api.js";
 
-const $ = (id) => document.getElementById(id);
 const byName = new Intl.Collator(undefined, {numeric: true, sensitivity: "base"});
 const typedName = (text) => (text || "").trim().normalize("NFC");
 const routePath = (name) => "/routes/" + encodeURIComponent(name);

@@ -2,13 +2,12 @@
 // Run, Edit and Delete, New route (routeedit.js), and the last few runs with how each ended; an
 // interrupted one (the robot's server stopped under it) can be resumed.
 import {rowButton} from "./buttons.js";
-import {api} from "./api.js";
+import {api, $} from "./api.js";
 import {notify} from "./notice.js";
 import {clock, runName, runResult} from "./runwords.js";
 import {tellRun} from "./runstrip.js";
 import {editRoute, initRouteEditor} from "./routeedit.js";
 
-const $ = (id) => document.getElementById(id);
 const quietly = (promise) => promise.catch(() => {});
 const byName = new Intl.Collator(undefined, {numeric: true, sensitivity: "base"});
 const PAST = 5;  // past runs listed

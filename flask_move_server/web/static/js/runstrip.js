@@ -2,11 +2,10 @@
 // "2 of 3: office", the loop, and Pause or Resume, Skip, Cancel; its progress drawn on the map.
 // Fed by `run` events and, after every (re)connect, by GET /runs; the runs it knows go on to the
 // Routes panel's list of past runs. A run this page saw under way says how it ended, over the map.
-import {api} from "./api.js";
+import {api, $} from "./api.js";
 import {notify, report} from "./notice.js";
 import {runLoop, runName, runResult, runStop} from "./runwords.js";
 
-const $ = (id) => document.getElementById(id);
 const ACTIVE = ["running", "paused"];
 const KEPT = 20;  // runs held for the panel's list (it shows the last few)
 let ctx = null;  // {call, move, map, onRuns} from main.js

@@ -1,7 +1,7 @@
 // The robot says it is stuck (`stuck` in /status and events), in its own words. Backing out by
 // itself: amber; waiting for its owner: red, with "Back out" (POST /stuck/back_out) and "Joystick"
 // (the Drive tab). A phone shows two lines of the words; a tap shows them all.
-const $ = (id) => document.getElementById(id);
+import {$} from "./api.js";
 
 /** Shows `/status`'s `stuck` ({state, message, place, ...}, or null): the banner while it is not free. */
 export function showStuck(stuck) {

@@ -1,7 +1,7 @@
 // Where the robot is: after a switch to a map (or a restart) the robot sets its position to the
 // map's dock wherever it stands, and says so (`localization` in the mode). The banner asks the
 // owner to check it until they say it is right or set the position on the map.
-const $ = (id) => document.getElementById(id);
+import {$} from "./api.js";
 let ctx = null;  // {call, setGesture} from main.js
 let mode = null;  // the newest mode body: idle means no map, so no position is tracked
 
