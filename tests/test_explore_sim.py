@@ -147,6 +147,7 @@ def test_the_estop_ends_exploring_and_the_robot_stands(demo):
         assert demo.post("/estop/release").status_code == 200
 
 
+@pytest.mark.timeout(EXPLORE_WAIT)  # the whole flat: ~50 s alone, past pytest's 120 s beside a busy CI's other worker
 def test_the_demo_flat_is_explored_and_a_taken_name_is_refused_before_the_robot_moves(demo):
     wait_for(lambda: not demo.status()["estop"]["latched"], timeout=10, message="the e-stop released")
     start = true_pose(demo)

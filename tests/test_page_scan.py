@@ -7,6 +7,7 @@ A real browser at phone size with touch, against one real ``--sim`` server on th
 import json
 
 import pytest
+import yaml
 
 pytest.importorskip("playwright", reason="playwright is not installed (pip install -e '.[test]'; Debian lacks it)")
 
@@ -141,6 +142,31 @@ def test_home_docks_onto_the_charger_whatever_its_name_and_without_a_dock_says_w
         body = {"x": dock["x"], "y": dock["y"], "yaw": dock["yaw"]}
         assert sim_request(sim, "PUT", "/waypoints/dock", body).status_code in (200, 201)
     page.wait_for_function("document.getElementById('home').getAttribute('aria-disabled') === 'false'")
+
+
+def test_places_shows_the_charger_and_the_owner_chooses_another_in_their_words(sim, page):
+    charger = "Ladestation Küche"
+    dock = sim.get("/waypoints/dock").json()
+    here = {"x": dock["x"], "y": dock["y"], "yaw": dock["yaw"]}
+    assert sim_request(sim, "PUT", "/waypoints/" + charger, here).status_code == 201
+    try:
+        page.locator("#tabs button[data-tab=places]").tap()
+        row = '#places li[data-name="{}"] button[title=Charger]'
+        page.wait_for_selector(row.format(charger), timeout=10000)
+        assert page.get_attribute(row.format("dock"), "aria-pressed") == "true"  # the charger, shown
+        assert page.get_attribute(row.format(charger), "aria-pressed") == "false"
+        page.locator(row.format(charger)).tap()
+        page.wait_for_function("document.getElementById('home').title === 'Dock at Ladestation Küche'")
+        assert sim.get("/waypoints/" + charger).json().get("dock") is True  # saved by the server
+        assert "dock" not in sim.get("/waypoints/dock").json()  # the one before lost it
+        page.wait_for_selector(row.format(charger) + '[aria-pressed="true"]', timeout=5000)
+        assert page.get_attribute(row.format("dock"), "aria-pressed") == "false"
+        with open(sim.status()["waypoints"]["file"], encoding="utf-8") as saved:
+            assert yaml.safe_load(saved)["dock"] == charger  # in the file, in the owner's words
+    finally:
+        assert sim_request(sim, "PUT", "/waypoints/dock", dict(here, dock=True)).status_code == 200
+        assert sim_request(sim, "DELETE", "/waypoints/" + charger).status_code == 204
+        page.locator("#tabs button[data-tab=drive]").tap()
 
 
 def sim_request(sim, method, path, body=None):

@@ -83,17 +83,31 @@ def test_a_goal_no_move_base_acknowledges_is_given_up_with_the_reason(mute_robot
     assert mute_robot.stop() is False  # nothing left canceling
 
 
+class _NotHeardYet(actionlib.ActionServer):
+    """A move_base that, once ``deaf``, drops the goals and cancels it receives, as if still on their way. Its
+    subscriptions stay: unsubscribing them (as this test did) let the client see the goal topic's
+    connection drop, under load before the goal was sent, and refuse it as "move_base does not answer"."""
+
+    deaf = False
+
+    def internal_goal_callback(self, goal):
+        if not self.deaf:
+            super().internal_goal_callback(goal)
+
+    def internal_cancel_callback(self, goal_id):
+        if not self.deaf:
+            super().internal_cancel_callback(goal_id)
+
+
 @pytest.fixture
 def slow_robot(robot_config, ros_node, unique_name):
     """The real robot, its move_base one that has not heard the goal yet (a busy move_base, a slow
     link): it publishes its status (without the goal), but the goal and its cancel are still on their way."""
-    slow = actionlib.ActionServer(unique_name + "/move_base", MoveBaseAction, goal_cb=lambda handle: None,
-                                  auto_start=False)
+    slow = _NotHeardYet(unique_name + "/move_base", MoveBaseAction, goal_cb=lambda handle: None, auto_start=False)
     slow.start()
     robot = cli.build_robot(robot_config, ros_node, no_drive())
     wait_for(robot.navigator.server_ready, timeout=15, message="the action client to see the slow move_base")
-    slow.goal_sub.unregister()  # from now on goals and cancels are on their way, never there
-    slow.cancel_sub.unregister()
+    slow.deaf = True  # from now on goals and cancels are on their way, never there
     yield robot
     robot.close()
 

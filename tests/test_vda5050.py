@@ -118,7 +118,8 @@ def test_the_robot_says_it_is_online_and_what_it_is_retained(sim, fleet, broker)
     # config/costmap_common.yaml's footprint: 0.28 m long, 0.25 m wide
     assert (sheet["physicalParameters"]["length"], sheet["physicalParameters"]["width"]) == (0.28, 0.25)
     assert {a["actionType"] for a in sheet["protocolFeatures"]["agvActions"]} == {
-        "cancelOrder", "startPause", "stopPause", "initPosition", "stateRequest", "factsheetRequest"}
+        "cancelOrder", "startPause", "stopPause", "initPosition", "stateRequest", "factsheetRequest", "startCharging",
+        "stopCharging"}
     assert all(a["actionScopes"] == ["INSTANT"] for a in sheet["protocolFeatures"]["agvActions"])
 
 
@@ -468,6 +469,24 @@ def test_an_order_waiting_for_its_release_ends_when_the_owner_sends_the_robot_el
 
 
 # shutdown -------------------------------------------------------------------------------
+
+def test_start_charging_docks_until_it_charges_and_stop_charging_backs_off(sim, fleet, idle):
+    fleet.instant(("charge-1", "startCharging"))
+    fleet.state(lambda s: (_action(s, "charge-1") or {}).get("actionStatus") == "RUNNING")
+    assert sim.status()["dock"]["state"] in ("going", "approaching", "charging")
+    state = fleet.state(lambda s: _action(s, "charge-1")["actionStatus"] != "RUNNING", timeout=120)
+    assert _action(state, "charge-1")["actionStatus"] == "FINISHED", _action(state, "charge-1")
+    assert _action(state, "charge-1")["resultDescription"] == "Charging at dock."
+    assert fleet.state(lambda s: s["batteryState"]["charging"], timeout=10)["batteryState"]["charging"] is True
+    fleet.instant(("off-1", "stopCharging"))
+    state = fleet.state(lambda s: (_action(s, "off-1") or {}).get("actionStatus") in ("FINISHED", "FAILED"),
+                        timeout=60)
+    assert _action(state, "off-1")["actionStatus"] == "FINISHED" and sim.status()["dock"]["state"] == "undocked"
+    fleet.instant(("off-2", "stopCharging"))
+    state = fleet.state(lambda s: _action(s, "off-2") is not None)
+    assert _action(state, "off-2")["actionStatus"] == "FAILED"
+    assert "not on a charger" in _action(state, "off-2")["resultDescription"]
+
 
 def test_a_clean_stop_says_offline_retained(sim, broker):
     """The module's last test: its robot stops."""

@@ -71,6 +71,7 @@ class Server(ServerParts):
         self._build_recovery(stack, robot, store)
         self._build_docking(stack, robot, store)
         self.happenings = self._build_happenings(stack, robot)
+        self._go_home_when_low(stack, robot, runs, self.happenings)
         app = create_app(self.config, robot, store, token=self.config.resolved_token(), events=self.events,
                          modes=self.modes, maps=maps, doctor=self._build_doctor(robot), runs=runs,
                          explorer=explorer)

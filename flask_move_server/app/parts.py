@@ -102,10 +102,17 @@ class ServerParts:
         if hasattr(charge, "close"):
             stack.callback(charge.close)
         docking = Docking(robot, cfg.dock, store.dock, charge, events=self.events,
-                          room_ahead=self._room_ahead(robot))
+                          room_ahead=self._room_ahead(robot), level=lambda: _charge_level(robot))
         stack.callback(docking.close)
         robot.docking = docking
         return docking
+
+    def _go_home_when_low(self, stack, robot, runs, happenings):
+        """Below ``dock.return_below`` the robot docks, a run paused, and goes on once charged (``dock/``)."""
+        from flask_move_server.dock.low_battery import LowBattery
+
+        low = LowBattery(robot, robot.docking, runs, self.config.dock, tell=happenings.low_battery)
+        stack.callback(low.start().close)
 
     def _room_ahead(self, robot):
         """``room_ahead(reach)``: metres the laser shows clear before the footprint (the stuck watch's latest
@@ -348,6 +355,12 @@ def build_robot(config, node, drive, estop=None):
     teleop = Teleop(config.teleop, node)
     battery = BatteryMonitor(config.battery.topic, node)
     return Robot(node, navigator, pose, teleop, drive, estop, battery)
+
+
+def _charge_level(robot):
+    """The battery's charge 0..1, or None when unknown."""
+    battery = robot.battery_status()
+    return battery["percentage"] / 100.0 if battery and battery.get("percentage") is not None else None
 
 
 def dock_position(store):

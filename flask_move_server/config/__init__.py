@@ -279,7 +279,8 @@ class DockConfig:
     charge_gpio: Optional[int] = checked(rules.gpio_pin, default=None)  # BCM pin, high while charging
 
 
-WEBHOOK_EVENTS = ("arrived", "failed", "run_done", "estop", "explore_done", "stuck", "docked", "dock_failed")
+WEBHOOK_EVENTS = ("arrived", "failed", "run_done", "estop", "explore_done", "stuck", "docked", "dock_failed",
+                  "low_battery")
 
 
 @dataclass

@@ -148,6 +148,12 @@ class DockFailed(MoveServerError, RuntimeError):
     code = "dock_failed"
 
 
+class BatteryCritical(MoveServerError, RuntimeError):
+    """A goal other than home while the battery is below ``dock.critical_below``."""
+
+    code = "battery_critical"
+
+
 class Pressed(MoveServerError, RuntimeError):
     """A joystick command that would push the robot on against what it is pressed on."""
 

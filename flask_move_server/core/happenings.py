@@ -18,6 +18,9 @@ The names (the ``events`` a webhook lists, config.WEBHOOK_EVENTS) and their data
 - ``docked``: a docking (``POST /dock``, ``dock/``) brought the robot onto its charger; ``dock_failed``:
   one gave up (at the staging pose, ``message`` says why). The data is ``/status``'s ``dock`` then
   (``{"state", "place", "tries", "confirmed", "message"}``). Once per docking.
+- ``low_battery``: the battery fell below ``dock.return_below`` and the robot goes home by itself
+  (``dock/low_battery.py``): ``{"percentage", "place", "run"}``, ``run`` the id of the run it paused
+  (or None). Once per fall below it.
 
 A goal canceled (``POST /stop``, a run paused, teleop) or replaced by a newer goal is neither
 ``arrived`` nor ``failed``. While an exploration is under way its own goals (frontiers, the way
@@ -40,9 +43,9 @@ from flask_move_server.missions.history import ENDED as RUN_ENDS
 
 log = logging.getLogger(__name__)
 
-ARRIVED, FAILED, RUN_DONE, ESTOP, EXPLORE_DONE, STUCK, DOCKED, DOCK_FAILED = (
-    "arrived", "failed", "run_done", "estop", "explore_done", "stuck", "docked", "dock_failed")
-NAMES = (ARRIVED, FAILED, RUN_DONE, ESTOP, EXPLORE_DONE, STUCK, DOCKED, DOCK_FAILED)
+ARRIVED, FAILED, RUN_DONE, ESTOP, EXPLORE_DONE, STUCK, DOCKED, DOCK_FAILED, LOW_BATTERY = (
+    "arrived", "failed", "run_done", "estop", "explore_done", "stuck", "docked", "dock_failed", "low_battery")
+NAMES = (ARRIVED, FAILED, RUN_DONE, ESTOP, EXPLORE_DONE, STUCK, DOCKED, DOCK_FAILED, LOW_BATTERY)
 DOCKING = ("going", "approaching", "undocking")  # dock/docking.py: its own goal (the staging pose) is not told
 GOAL_FAILURES = ("aborted", "rejected", "lost", "stuck")  # the navigator reads a lost goal as aborted
 RUNS_REMEMBERED = 200  # run ids whose end was told: a late repeat of an ended run's event is not told again
@@ -172,6 +175,10 @@ class Happenings:
             self._tell(DOCKED, dict(dock))
         elif state == "failed" and before != "failed":
             self._tell(DOCK_FAILED, dict(dock))
+
+    def low_battery(self, data):
+        """dock/low_battery.py: the robot goes home on a low battery."""
+        self._tell(LOW_BATTERY, dict(data))
 
     def _tell(self, name, data):
         with self._lock:

@@ -116,6 +116,12 @@ class Robot:
             self.recovery.commanded()
         return canceled
 
+    def halt_for(self, reason):
+        """As :meth:`halt`, and an exploration under way ends with ``reason``; a run is left as it is (paused)."""
+        if self.explorer is not None:
+            self.explorer.cancel(reason, False)
+        return self.halt()
+
     def halt(self):
         """Cancel the goal, end teleop, command zero velocity; a run under way is left as it is (its pause)."""
         canceled = self.navigator.cancel()

@@ -19,7 +19,7 @@ import logging
 import threading
 import time
 
-from flask_move_server.core.errors import DockFailed, NoDock
+from flask_move_server.core.errors import BatteryCritical, DockFailed, NoDock
 from flask_move_server.core.geometry import Goal, Pose2D
 from flask_move_server.dock.approach import Approach, offset, staging_pose, within
 
@@ -55,18 +55,21 @@ UNREACHED = "could not reach the charger's front: {why}"
 NOT_THERE = "it did not get there in time"
 UNDOCKED_SAID = "Off the charger at {place}."
 NOT_DOCKED = "The robot is not on a charger: there is nothing to back off."
+CRITICAL = ("The battery is at {:.0f} %, below dock.critical_below ({:.0f} %): the robot only goes home now "
+            "(POST /dock, the page's Home). Charge it first.")
 
 
 class Docking:
     """The robot's dock state (``/status`` ``dock``; ``dock`` events) and the worker driving it."""
 
-    def __init__(self, robot, config, place, charge, events=None, room_ahead=None, clock=time.monotonic):
+    def __init__(self, robot, config, place, charge, events=None, room_ahead=None, level=None, clock=time.monotonic):
         """``robot``: the facade; ``config``: config.DockConfig; ``place()``: the active map's dock (a
         Waypoint) or None; ``charge()``: ``"charging"``, ``"full"``, ``"off"`` or None (nothing says: no
         battery heard, or ``charge_detect: none``); ``events``: the bus; ``room_ahead(reach)``: metres clear
-        before the robot (the laser), or None when it cannot say."""
+        before the robot (the laser), or None when it cannot say; ``level()``: the battery's charge, 0..1,
+        or None when unknown (below ``critical_below`` goals other than home are refused)."""
         self._robot, self.config = robot, config
-        self._place, self._charge = place, charge
+        self._place, self._charge, self._level = place, charge, level or (lambda: None)
         self._events, self._room_ahead, self._clock = events, room_ahead or (lambda reach: None), clock
         self._lock = threading.Condition()
         self._telling = threading.Lock()  # events in the order of the changes
@@ -88,6 +91,10 @@ class Docking:
     def _status(self):
         return {"state": self._state, "place": self._name, "tries": self._tries, "confirmed": self._confirmed,
                 "message": self._message}
+
+    def place(self):
+        """The active map's dock (a Waypoint), or None without one."""
+        return self._place()
 
     @property
     def docked(self):
@@ -117,9 +124,11 @@ class Docking:
 
     # the owner's commands ---------------------------------------------------------------------
 
-    def dock(self):
+    def dock(self, why=None, keep_run=False):
         """Home to the charger and onto it (``POST /dock``): the status. NoDock when the map has none;
-        EStopLatched while the e-stop is on. Docked or docking already: nothing new."""
+        EStopLatched while the e-stop is on. Docked or docking already: nothing new. ``why``: said before
+        "going home" (the battery running low); ``keep_run``: a run paused for it stays paused (the goal
+        and teleop end, an exploration ends), else whatever the robot does ends."""
         self._robot.refuse_motion("docking is")
         waypoint = self._place()
         if waypoint is None:
@@ -127,9 +136,13 @@ class Docking:
         with self._lock:
             if self._state in ON_THE_DOCK + (GOING, APPROACHING):
                 return self._status()
-        self._robot.stop("Going home to {} (POST /dock).".format(waypoint.name))  # ends a run, a goal, teleop
+        going = SAID[GOING].format(place=waypoint.name)
+        if keep_run:
+            self._robot.halt_for(why or going)
+        else:
+            self._robot.stop("Going home to {} (POST /dock).".format(waypoint.name))  # ends a run, a goal, teleop
         job = self._next_job(waypoint)
-        self._change(job, GOING, SAID[GOING].format(place=waypoint.name), tries=1)
+        self._change(job, GOING, "{} {}".format(why, going[0].lower() + going[1:]) if why else going, tries=1)
         self._start(self._go_home, job)
         return self.status()
 
@@ -146,7 +159,11 @@ class Docking:
 
     def before_goal(self):
         """``Robot._send``: a goal while docked backs off the charger first (waits for it). DockFailed when
-        the robot could not get off it (someone stopped it, the e-stop)."""
+        the robot could not get off it (someone stopped it, the e-stop); BatteryCritical below
+        ``dock.critical_below``: only going home is taken then."""
+        level = self._level()
+        if level is not None and level < self.config.critical_below:
+            raise BatteryCritical(CRITICAL.format(level * 100, self.config.critical_below * 100))
         with self._lock:
             if self._state not in ON_THE_DOCK:
                 return
@@ -186,6 +203,17 @@ class Docking:
         if state in ON_THE_DOCK:
             return True
         raise DockFailed(message or "The docking ended.")
+
+    def wait_off(self, timeout):
+        """Wait up to ``timeout`` s for an undocking to end: True when off the charger (``undocked``)."""
+        deadline = self._clock() + timeout
+        with self._lock:
+            while self._state == UNDOCKING and not self._closed.is_set():
+                left = deadline - self._clock()
+                if left <= 0:
+                    break
+                self._lock.wait(min(left, 0.5))
+            return self._state == UNDOCKED
 
     def close(self):
         """Stop a docking under way (the server is stopping). Idempotent."""

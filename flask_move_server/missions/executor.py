@@ -58,6 +58,7 @@ class RunExecutor(RunWorker):
         self._sending = threading.RLock()  # held while a run's goal is sent; end_by waits for it
         self._run = None  # the active run
         self._command = None  # "pause", "skip", "cancel" for the worker to act on
+        self._pause_why = None  # said before the pause's message (the battery ran low)
         self._seq = None  # the goal the active run sent last
         self._worker = None
         self._closed = False
@@ -143,8 +144,16 @@ class RunExecutor(RunWorker):
         busy = self._robot.busy_with()
         return busy[0].lower() + busy[1:] if busy else None
 
-    def pause(self, run_id):
-        return self._act(run_id, "pause", (RUNNING,), "paused")
+    def pause(self, run_id, why=None):
+        """Pause the run: its goal stops; ``why``, if given, is said before its "paused at ..." message."""
+        with self._lock:
+            self._pause_why = why
+        try:
+            return self._act(run_id, "pause", (RUNNING,), "paused")
+        except RunConflict:
+            with self._lock:
+                self._pause_why = None
+            raise
 
     def skip(self, run_id):
         with self._lock:
@@ -156,8 +165,9 @@ class RunExecutor(RunWorker):
     def cancel(self, run_id):
         return self._act(run_id, "cancel", ACTIVE + (INTERRUPTED,), "canceled")
 
-    def resume(self, run_id):
-        """Go on: a paused run sends its current waypoint again; an interrupted one starts a worker anew."""
+    def resume(self, run_id, why=None):
+        """Go on: a paused run sends its current waypoint again; an interrupted one starts a worker anew.
+        ``why``, if given, is the run's message meanwhile (it went on by itself, after charging)."""
         mode = self._mode_status()
         with self._sending, self._lock:
             run = self._find(run_id)
@@ -166,7 +176,7 @@ class RunExecutor(RunWorker):
                                   "sends it again; it is not resumed here.".format(run_id))
             if run.state in WAITING:
                 self._robot.refuse_motion("runs are")
-                run.state, run.message, self._command = RUNNING, None, None
+                run.state, run.message, self._command = RUNNING, why, None
                 self._changed(run)
                 return run.as_dict()
             if run.state != INTERRUPTED:

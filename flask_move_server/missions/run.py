@@ -57,6 +57,7 @@ class Run:
     holding: bool = field(default=False, repr=False, compare=False)  # waiting at the last stop for more
     watch: object = field(default=None, repr=False, compare=False)  # watch(what, value) as it goes
     trimmed: int = field(default=0, repr=False, compare=False)  # stops passed and forgotten (extend)
+    charges: int = field(default=0, repr=False, compare=False)  # times it was paused to go home and charge
 
     @classmethod
     def of_route(cls, run_id, route, trigger):

@@ -144,6 +144,9 @@ class RunWorker:
 
     def _pause(self, run, message, state=PAUSED):
         """Lock held: ``run`` waits for a resume (the worker sleeps in :meth:`_await_running`)."""
+        why, self._pause_why = self._pause_why, None
+        if why and state == PAUSED:
+            message, run.charges = "{} {}".format(why, message), run.charges + 1
         run.state, run.message = state, message
         self._changed(run)
 
@@ -182,6 +185,8 @@ class RunWorker:
 def summary(run):
     """The closing sentence of a run that went through its loops."""
     loops = "{} loops".format(run.loop) if run.loop > 1 else "1 loop"
+    charged = {0: "", 1: " It went home to charge on the way, once."}.get(
+        run.charges, " It went home to charge on the way, {} times.".format(run.charges))
     if not run.missed:
-        return "Visited every waypoint ({}).".format(loops)
-    return "Done ({}), but {} waypoint visit(s) missed: see 'missed'.".format(loops, len(run.missed))
+        return "Visited every waypoint ({}).{}".format(loops, charged)
+    return "Done ({}), but {} waypoint visit(s) missed: see 'missed'.{}".format(loops, len(run.missed), charged)

@@ -1,7 +1,8 @@
 """A fleet manager's instant actions (VDA 5050 2.0.0, section 6.9), each reported in ``actionStates``.
 
 ``cancelOrder`` (``noOrderToCancel`` without an order), ``startPause`` / ``stopPause``,
-``initPosition`` (relocalize on the active map), ``stateRequest``, ``factsheetRequest``. Another
+``initPosition`` (relocalize on the active map), ``stateRequest``, ``factsheetRequest``,
+``startCharging`` / ``stopCharging`` (dock and undock: charging.py). Another
 action type FAILS, saying so. One action failing never keeps the next of the message from its turn.
 Every text the state may echo (ids, types, ``mapId``, ``lastNodeId``) is at most ``MAX_ID``
 characters, as the factsheet's ``idLen`` says, or the message is refused without echoing it: 60
@@ -12,25 +13,27 @@ import logging
 
 from flask_move_server.core.errors import MoveServerError
 from flask_move_server.core.geometry import Pose2D
+from flask_move_server.vda5050.charging import REPORTED  # an action that reported its own end
 from flask_move_server.vda5050.messages import MAX_ACTIONS
 from flask_move_server.vda5050.order import HEADER, MAX_ID, Refusal, finite
 
 log = logging.getLogger(__name__)
 
 FINISHED, FAILED = "FINISHED", "FAILED"
-REPORTED = object()  # an action that reported its own end
 
 
 class InstantActions:
     """``driving`` the order's (driving.py), ``report`` the vehicle's; ``modes`` the mode manager (None:
     localization is someone else's); ``active_map()``; ``tell_state()``, ``tell_factsheet()`` send now."""
 
-    def __init__(self, driving, report, modes, active_map, tell_state, tell_factsheet):
+    def __init__(self, driving, report, modes, active_map, tell_state, tell_factsheet, charging=None):
         self._driving, self._report, self._modes, self._active_map = driving, report, modes, active_map
         self._acts = {"cancelOrder": self._cancel_order, "startPause": self._start_pause,
                       "stopPause": self._stop_pause, "initPosition": self._init_position,
                       "stateRequest": lambda action: tell_state() or "Sent.",
                       "factsheetRequest": lambda action: tell_factsheet() or "Sent."}
+        if charging is not None:
+            self._acts.update(startCharging=charging.start, stopCharging=charging.stop)
 
     def take(self, message, addressed=None):
         """Each action of ``message`` (parsed JSON), in order; Refusal (validationError) for the message.

@@ -19,6 +19,8 @@ INSTANT_ACTIONS = {
     "initPosition": "Tells localization where the robot is (x, y, theta on mapId, the active map).",
     "stateRequest": "Sends the state now.",
     "factsheetRequest": "Sends the factsheet now.",
+    "startCharging": "Goes home onto the active map's charger and charges (RUNNING until it charges).",
+    "stopCharging": "Backs straight off the charger.",
 }
 INIT_POSITION = (("x", "FLOAT"), ("y", "FLOAT"), ("theta", "FLOAT"), ("mapId", "STRING"), ("lastNodeId", "STRING"))
 MAX_PAYLOAD = 256 * 1024  # bytes of an order or instant actions message taken (the factsheet's msgLen)

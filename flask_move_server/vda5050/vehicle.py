@@ -21,6 +21,7 @@ import time
 
 from flask_move_server.process.log_limits import Throttled
 from flask_move_server.vda5050 import messages
+from flask_move_server.vda5050.charging import Charging
 from flask_move_server.vda5050.driving import Driving
 from flask_move_server.vda5050.instant import InstantActions
 from flask_move_server.vda5050.order import Refusal, check, unsupported
@@ -55,8 +56,9 @@ class Vehicle:
         self._wake = threading.Event()
         self._report = Report(self._lock, self._wake.set)
         self._driving = Driving(self._lock, self._report, robot, runs, store, self._active_map)
+        charging = Charging(robot, self._report) if getattr(robot, "docking", None) is not None else None
         self._instant = InstantActions(self._driving, self._report, modes, self._active_map, self._state_due,
-                                       self._send_factsheet)
+                                       self._send_factsheet, charging)
         self._last_state, self._last_sent = None, 0.0
         self._last_pose, self._last_shown = None, 0.0
         self._position_read, self._read_at = None, None  # agvPosition, read at most once a second unless sent

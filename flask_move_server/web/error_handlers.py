@@ -35,6 +35,7 @@ STATUS = (
     (errors.Pressed, 409),
     (errors.NoDock, 409),
     (errors.DockFailed, 409),
+    (errors.BatteryCritical, 409),
     (errors.ExploreConflict, 409),
     (errors.NoPose, 409),
     (errors.WaypointsLocked, 503),

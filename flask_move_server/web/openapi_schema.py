@@ -16,7 +16,7 @@ ERROR_CODES = {
     405: "method_not_allowed: the path takes other methods (the Allow header lists them)",
     409: "navigation_failed (with state), no_pose, command_late, estop_latched, estop_button_pressed, waypoints_file, "
          "wrong_mode, map_exists, map_in_use, map_configured, mode_switching, modes_off, waypoint_in_use, "
-         "run_conflict, explore_conflict, not_stuck, pressed, map_full, no_dock, dock_failed",
+         "run_conflict, explore_conflict, not_stuck, pressed, map_full, no_dock, dock_failed, battery_critical",
     413: "body_too_large: the body is over server.max_body_bytes",
     503: "ros_unavailable, move_base_unavailable, drive_error, shutting_down, waypoints_locked, map_file, "
          "no_map_received, stack_failed, too_many_streams",

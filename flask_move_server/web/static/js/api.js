@@ -7,6 +7,7 @@
 
 /** The page's element of id `id` (every module's `$`). */
 export const $ = (id) => document.getElementById(id);
+export const quietly = (promise) => promise.catch(() => {});
 
 const TOKEN_KEY = "robotToken";
 let token = localStorage.getItem(TOKEN_KEY) || "";
@@ -14,7 +15,7 @@ let asking = null;
 let declined = false;  // the user dismissed the question: do not ask on every retry
 
 /** The headers every call sends: the token when the device has one. */
-export function authHeaders(extra = {}) {
+function authHeaders(extra = {}) {
   const headers = Object.assign({}, extra);
   if (token) headers["Authorization"] = "Bearer " + token;
   return headers;

@@ -27,7 +27,7 @@ export function clock(seconds) {
 }
 
 /** The strip's two lines for exploration `e`: what it does, and how far it got. */
-export function exploreWords(e, elapsed = e.elapsed) {
+function exploreWords(e, elapsed = e.elapsed) {
   const mapped = Math.round(e.known_m2 || 0) + " m² mapped";
   const away = e.unreachable ? plural(e.unreachable, "place", "places") + " out of reach" : "";
   const progress = (...parts) => parts.filter(Boolean).join(" · ");

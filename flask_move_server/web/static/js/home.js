@@ -1,5 +1,4 @@
-// Home (as Valetudo has it): docks onto the map's charger, the place marked as the dock (POST /dock),
-// and says what docking does ("Charging"; its words on the status line). No dock: greyed; a tap says why.
+// Home (as Valetudo's): POST /dock, saying what docking does. No charger marked: greyed, a tap says why.
 import {$} from "./api.js";
 const NO_DOCK = "This map has no charger marked. Drive the robot onto it, then mark that place " +
   "as the dock (PUT /waypoints/<name> with \"dock\": true).";
@@ -26,5 +25,5 @@ export function showDock(d) {
   $("home").setAttribute("aria-pressed", String(state === "docked" || state === "charging"));
 }
 
-/** The docking's words while it docks, is docked or failed, else null: the status line's. */
+/** The status line's words while it docks, is docked or failed; else null. */
 export const dockWords = () => said;

@@ -1,5 +1,5 @@
 // The phone page: wires the live feed, the map, the joystick and the panels to the API.
-import {api, authorisedFetch, askTokenAgain, $} from "./api.js";
+import {api, authorisedFetch, askTokenAgain, $, quietly} from "./api.js";
 import {Joystick, KeyDrive} from "./joystick.js";
 import {Live} from "./live.js";
 import {MapView} from "./mapview.js";
@@ -60,7 +60,6 @@ function setOff(path, body) {
   stopping.cancel();
   return api("POST", path, body && Object.assign({}, body, within(GOAL_WINDOW_S)));
 }
-const quietly = (promise) => promise.catch(() => {});
 const buzz = () => { if (navigator.vibrate) navigator.vibrate(30); };  // a felt "sent" on phones that can
 
 function showNavigation(nav) {

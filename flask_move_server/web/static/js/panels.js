@@ -2,7 +2,7 @@
 // save the growing map, the maps with thumbnails to navigate on, rename or delete, relocalize.
 // The map the stack was configured with (the demo's) is listed too ("source": "configured"):
 // it can be used again, not renamed nor deleted; /mode calls it map null.
-import {api, authorisedFetch, $} from "./api.js";
+import {api, authorisedFetch, $, quietly} from "./api.js";
 import {withoutApi} from "./words.js";
 import {notify} from "./notice.js";
 
@@ -131,7 +131,6 @@ function button(label, className, onClick) {
   return b;
 }
 
-const quietly = (promise) => promise.catch(() => {});
 
 function switchTo(body) { return quietly(askMode(() => ctx.call("POST", "/mode", body, "mode"))); }
 

@@ -1,15 +1,12 @@
-// The Places panel and the places on the map: the list (Go, Rename, Delete), Mark here, and a
+// The Places panel and the places on the map: the list (Go, Charger, Rename, Delete), Mark here, and a
 // place marked by a press on the map. The list and the map's markers are drawn from one read.
 import {rowButton} from "./buttons.js";
-import {api, $} from "./api.js";
+import {api, $, quietly} from "./api.js";
 import {notify} from "./notice.js";
+import {byName, typedName} from "./words.js";
 
-const quietly = (promise) => promise.catch(() => {});
-// A name as the robot keeps it: NFC, so "Küche" typed on a Mac (u + ¨) is the one typed on a phone.
-const typedName = (text) => (text || "").trim().normalize("NFC");
 let ctx = null;  // {call, sendGoal, isLive, map, buzz} from main.js
 const FILTER_FROM = 6;  // this many places or more: a box to find one by name
-const byName = new Intl.Collator(undefined, {numeric: true, sensitivity: "base"});
 
 let waypointLoads = 0;  // answers can cross (a change, its event, our own reload): the newest request wins
 let shownWaypoints = null;  // the list as drawn, as JSON
@@ -47,14 +44,17 @@ function filterPlaces() {
 function placeRow(w) {
   const li = document.createElement("li");
   li.dataset.name = w.name;
-  li.append(button(w.name, "go needs-live moves", () => goTo(w.name)),
+  const charger = button("\u26a1", "quiet", () => chooseCharger(w));  // narrow: names keep room
+  charger.title = "Charger";
+  charger.setAttribute("aria-pressed", String(!!w.dock));
+  li.append(button(w.name, "go needs-live moves", () => goTo(w.name)), charger,
     button("Rename", "quiet", () => renamePlace(w)), button("Delete", "quiet", () => deletePlace(w.name)));
   return li;
 }
 
 const button = (label, className, onClick) => rowButton(label, className, onClick, ctx.isLive);
 
-export const goTo = (name) => { ctx.buzz(); return quietly(ctx.sendGoal({name})); };
+const goTo = (name) => { ctx.buzz(); return quietly(ctx.sendGoal({name})); };
 
 /** A new waypoint under a name in use replaces that one: ask first (destructive). */
 function mayReplace(name) {
@@ -71,6 +71,12 @@ async function renamePlace(w) {
   if (overwrite && !window.confirm("Replace the place " + name + "?")) return;
   await quietly(ctx.call("PATCH", placePath(w.name), {name, overwrite})
     .then(() => notify("Renamed " + w.name + " to " + name)));
+  quietly(loadWaypoints());
+}
+
+async function chooseCharger(w) {
+  await quietly(ctx.call("PUT", placePath(w.name), {dock: !w.dock})
+    .then(() => notify(w.name + (w.dock ? " is no longer the charger" : " is the charger"))));
   quietly(loadWaypoints());
 }
 

@@ -4,9 +4,8 @@
 // route given a new name is saved under it first, then the old one deleted (never lost half-way).
 import {notify, report} from "./notice.js";
 import {$} from "./api.js";
+import {byName, typedName} from "./words.js";
 
-const byName = new Intl.Collator(undefined, {numeric: true, sensitivity: "base"});
-const typedName = (text) => (text || "").trim().normalize("NFC");
 const routePath = (name) => "/routes/" + encodeURIComponent(name);
 let ctx = null;  // {call, map, setGesture, routeNames(), saved()} from routes.js
 let draft = null;  // {original: the name it had, or null for a new route; stops: [names]}
@@ -26,7 +25,7 @@ export function editRoute(route) {
   ctx.setGesture("route");
 }
 
-export const editing = () => draft !== null;
+const editing = () => draft !== null;
 
 function close() {
   draft = null;
@@ -37,7 +36,7 @@ function close() {
 }
 
 /** A place tapped on the map or in the list: the route's next stop. */
-export function addStop(name) {
+function addStop(name) {
   if (!draft) return;
   draft.stops.push(name);
   showStops();

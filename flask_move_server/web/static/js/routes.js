@@ -2,14 +2,13 @@
 // Run, Edit and Delete, New route (routeedit.js), and the last few runs with how each ended; an
 // interrupted one (the robot's server stopped under it) can be resumed.
 import {rowButton} from "./buttons.js";
-import {api, $} from "./api.js";
+import {api, $, quietly} from "./api.js";
 import {notify} from "./notice.js";
 import {clock, runName, runResult} from "./runwords.js";
 import {tellRun} from "./runstrip.js";
 import {editRoute, initRouteEditor} from "./routeedit.js";
+import {byName} from "./words.js";
 
-const quietly = (promise) => promise.catch(() => {});
-const byName = new Intl.Collator(undefined, {numeric: true, sensitivity: "base"});
 const PAST = 5;  // past runs listed
 let ctx = null;  // {call, move, isLive, map, setGesture} from main.js
 let routes = [];

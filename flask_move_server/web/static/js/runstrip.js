@@ -2,7 +2,7 @@
 // "2 of 3: office", the loop, and Pause or Resume, Skip, Cancel; its progress drawn on the map.
 // Fed by `run` events and, after every (re)connect, by GET /runs; the runs it knows go on to the
 // Routes panel's list of past runs. A run this page saw under way says how it ended, over the map.
-import {api, $} from "./api.js";
+import {api, $, quietly} from "./api.js";
 import {notify, report} from "./notice.js";
 import {runLoop, runName, runResult, runStop} from "./runwords.js";
 
@@ -64,7 +64,6 @@ function announceEnd(run) {
   else notify(text);
 }
 
-const quietly = (promise) => promise.catch(() => {});
 
 /** Pause and Cancel stop the robot; Resume and Skip send it on, so they go as motion commands. */
 function act(action) {

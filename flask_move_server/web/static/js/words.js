@@ -3,6 +3,10 @@
 // Each error code the page can meet gets a sentence; an unknown code falls back to the server's
 // message with its API asides taken out.
 
+export const byName = new Intl.Collator(undefined, {numeric: true, sensitivity: "base"});
+/** A name as the robot keeps it: NFC, so "Küche" typed on a Mac (u + ¨) is the one typed on a phone. */
+export const typedName = (text) => (text || "").trim().normalize("NFC");
+
 const WORDS = {
   not_connected: () => "Not delivered: the robot is not connected.",
   no_answer: () => "The robot did not answer (weak Wi-Fi?). If the command reaches it late, the robot ignores it.",
