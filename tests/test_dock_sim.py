@@ -141,6 +141,8 @@ def test_robotctl_docks_once_localization_is_right_and_undocks(sim, believer, ca
     believer(true.x, true.y, true.yaw, 0.05)  # put right where it waits, in front of the charger
     assert cli.main(["--url", sim.url, "dock", "--wait", "--timeout", "120"]) == 0
     assert capsys.readouterr().out.splitlines()[-1] == "Charging at dock."
+    assert cli.main(["--url", sim.url, "status"]) == 0
+    assert "dock:       Charging at dock." in capsys.readouterr().out.splitlines()
     assert cli.main(["--url", sim.url, "undock"]) == 0
     wait_for(lambda: sim.status()["dock"]["state"] == "undocked", timeout=30, message="off the charger")
     assert cli.main(["--url", sim.url, "undock"]) == 1

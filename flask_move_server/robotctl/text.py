@@ -68,6 +68,9 @@ def describe_status(data, url):
     if stuck.get("state", "free") != "free":
         lines.append("stuck:      " + (stuck.get("message") or stuck["state"]) + (
             " ('robotctl back-out' backs it out)" if stuck.get("waiting") else ""))
+    dock = data.get("dock") or {}
+    if dock.get("state", "undocked") != "undocked":
+        lines.append("dock:       " + (dock.get("message") or dock["state"]))
     problem = (data.get("waypoints") or {}).get("problem")
     if problem:
         lines.append("waypoints:  PROBLEM: " + problem)
