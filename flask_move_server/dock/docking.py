@@ -73,7 +73,9 @@ class Docking:
         self._events, self._room_ahead, self._clock = events, room_ahead or (lambda reach: None), clock
         self._lock = threading.Condition()
         self._telling = threading.Lock()  # events in the order of the changes
-        self._sending = threading.Lock()  # held while the worker checks it may go on and commands motion
+        # held while the worker checks it may go on and commands motion; re-entrant: the e-stop latched as the
+        # staging goal is sent stops the robot from within that send (Robot._unless_latched_meanwhile → ended_by)
+        self._sending = threading.RLock()
         self._closed = threading.Event()
         self._job = 0  # bumped by every command: a worker of an older job stops
         self._state, self._name, self._tries, self._confirmed, self._message = UNDOCKED, None, 0, False, None
