@@ -16,11 +16,12 @@ in the same run, so a change is measured against what it replaced.
 alternates windows of 1 client and of 8 clients (``--rounds`` of each, ``--seconds`` long) and
 compares the medians of their throughputs, then times ``POST /stop`` while 8 clients poll. It
 passes when 8 clients get at least ``--min-ratio`` of one client's throughput and ``/stop``'s p99
-is at most ``--max-stop-p99`` ms, and exits 1 otherwise: once, no second try (a guard that passes
-on its second try hides the regression it is for). A ratio within one run, not a number of
-requests per second, so a slower or busier machine moves both sides. ``--checkout DIR`` guards
-the server of another checkout (to see that the guard catches a regression: ``git worktree add
-DIR REV``).
+is at most ``--max-stop-p99`` ms or, on a machine where the polls themselves are slower than that,
+at most the 8-client windows' median p99 (``/stop`` not queued behind the reads), and exits 1
+otherwise: once, no second try (a guard that passes on its second try hides the regression it is
+for). A ratio within one run, not a number of requests per second, so a slower or busier machine
+moves both sides. ``--checkout DIR`` guards the server of another checkout (to see that the guard
+catches a regression: ``git worktree add DIR REV``).
 """
 
 import argparse
@@ -159,6 +160,7 @@ def guard(env, cwd, args):
         stop_process(server)
     ratio = statistics.median(windows[8]) / statistics.median(windows[1])
     stop_p99 = pct(stops, 0.99)
+    stop_limit = max(args.max_stop_p99, statistics.median(p99s[8]))
     print("## guard: {}; GET /status, {} rounds of {:g} s windows of 1 and of 8 client processes; "
           "load {:.1f}\n".format(cwd, args.rounds, args.seconds, os.getloadavg()[0]))
     print("| clients | req/s in each window | median req/s | p99 ms in each window |")
@@ -170,12 +172,14 @@ def guard(env, cwd, args):
     print("\n| check | measured | target |")
     print("|---|---:|---:|")
     print("| 8 clients / 1 client, ratio of the medians | {:.2f} | >= {:g} |".format(ratio, args.min_ratio))
-    print("| POST /stop p99 while 8 clients poll ({} stops) | {:.1f} ms | <= {:g} ms |".format(
-        len(stops), stop_p99, args.max_stop_p99))
-    passed = ratio >= args.min_ratio and stop_p99 <= args.max_stop_p99
+    print("| POST /stop p99 while 8 clients poll ({} stops) | {:.1f} ms | <= {:.1f} ms |".format(
+        len(stops), stop_p99, stop_limit))
+    print("\n/stop's target: {:g} ms, or the 8-client polls' median p99 when a poll itself is slower "
+          "on this machine ({:.1f} ms).".format(args.max_stop_p99, statistics.median(p99s[8])))
+    passed = ratio >= args.min_ratio and stop_p99 <= stop_limit
     print("\n{}: 8 clients got {:.2f} of one client's throughput (target >= {:g}), POST /stop p99 {:.1f} ms "
-          "while 8 clients poll (target <= {:g} ms).".format(
-              "PASS" if passed else "FAIL", ratio, args.min_ratio, stop_p99, args.max_stop_p99), flush=True)
+          "while 8 clients poll (target <= {:.1f} ms).".format(
+              "PASS" if passed else "FAIL", ratio, args.min_ratio, stop_p99, stop_limit), flush=True)
     return passed
 
 
@@ -190,7 +194,8 @@ def main():
     parser.add_argument("--rounds", type=int, default=3, help="--guard: windows of 1 and of 8 clients")
     parser.add_argument("--stops", type=int, default=150, help="--guard: POST /stop timed while 8 clients poll")
     parser.add_argument("--min-ratio", type=float, default=0.8, help="--guard: 8 clients / 1 client at least")
-    parser.add_argument("--max-stop-p99", type=float, default=25.0, help="--guard: ms, /stop's p99 at most")
+    parser.add_argument("--max-stop-p99", type=float, default=25.0,
+                        help="--guard: ms, /stop's p99 at most (or the polls' p99 if that is higher)")
     args = parser.parse_args()
     if args.seconds is None:
         args.seconds = 2.0 if args.guard else 5.0
