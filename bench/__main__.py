@@ -45,6 +45,7 @@ BENCHMARKS = [
     ("sim", "bench_sim.py", ["--repeat", "3", "--drive-seconds", "8"], ["--repeat", "1", "--drive-seconds", "1"]),
     ("stack", "bench_stack.py", ["--repeat", "2"], ["--repeat", "1"]),
     ("dock", "bench_dock.py", ["--tries", "30", "--homes", "2"], ["--tries", "3", "--homes", "1"]),
+    ("zones", "bench_zones.py", ["--repeat", "3", "--toggles", "6"], ["--repeat", "1", "--toggles", "2"]),
     ("abuse", "bench_abuse.py", ["--connections", "100", "--rounds", "10", "--signals", "2",
                                  "--storm-seconds", "4"],
      ["--connections", "5", "--depth", "2", "--rounds", "1", "--signals", "1", "--storm-seconds", "2"]),

@@ -278,6 +278,21 @@ class ServerProcess:
 
         return requests.post(self.url + path, json=body, timeout=timeout, headers=self.headers)
 
+    def put(self, path, body=None, timeout=10):
+        import requests
+
+        return requests.put(self.url + path, json=body, timeout=timeout, headers=self.headers)
+
+    def patch(self, path, body=None, timeout=10):
+        import requests
+
+        return requests.patch(self.url + path, json=body, timeout=timeout, headers=self.headers)
+
+    def delete(self, path, timeout=10):
+        import requests
+
+        return requests.delete(self.url + path, timeout=timeout, headers=self.headers)
+
     def stop(self, sig=None, timeout=10):
         """Send ``sig`` (SIGTERM) and return the exit status."""
         import signal

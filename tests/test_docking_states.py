@@ -26,6 +26,9 @@ class _Robot:
     def refuse_motion(self, what):
         pass
 
+    def check_zones(self, pose, target=None):
+        pass  # no zones on this map
+
     def stop(self, reason="Stopped (POST /stop)."):
         self.docking.ended_by(reason)
 

@@ -149,11 +149,20 @@ def test_navigation_args_reach_the_nodes():
     assert params["/move_base/DWAPlannerROS/max_vel_y"] == 0.0  # skid-steer: no lateral motion
 
 
+LAYER = {"static": {"name": "static_layer", "type": "costmap_2d::StaticLayer"},
+         "keepout": {"name": "keepout_layer", "type": "costmap_2d::StaticLayer"},
+         "obstacle": {"name": "obstacle_layer", "type": "costmap_2d::ObstacleLayer"},
+         "inflation": {"name": "inflation_layer", "type": "costmap_2d::InflationLayer"}}
 # What mapping's move_base has that navigation's has not: config/move_base_mapping.yaml, for a growing map.
 GROWING_MAP = {
     "/move_base/NavfnROS/allow_unknown": (False, True),
     "/move_base/global_costmap/static_layer/subscribe_to_updates": (False, True),
     "/move_base/global_costmap/static_layer/first_map_only": (None, False),  # navigation: the default, false
+    # no keepout layer while mapping (docs/zones.md): zones belong to a saved map
+    "/move_base/global_costmap/plugins": ([LAYER["static"], LAYER["keepout"], LAYER["obstacle"], LAYER["inflation"]],
+                                          [LAYER["static"], LAYER["obstacle"], LAYER["inflation"]]),
+    "/move_base/local_costmap/plugins": ([LAYER["keepout"], LAYER["obstacle"], LAYER["inflation"]],
+                                         [LAYER["obstacle"], LAYER["inflation"]]),
 }
 
 

@@ -22,6 +22,7 @@ import yaml
 
 from flask_move_server import config as config_mod
 from flask_move_server.sim import dwa
+from flask_move_server.zones import TOPIC, costmap_rules
 from tests.conftest import ROOT
 from tests.test_launch import dump_params, launch_path, ros_env
 
@@ -314,6 +315,7 @@ def unseen_cell_cost(mb):
     static = layer(costmap, "costmap_2d::StaticLayer")
     cost = static_layer_cost(static, GMAPPING_UNKNOWN) if static is not None else (
         NO_INFORMATION if costmap.get("track_unknown_space", False) else FREE_SPACE)
+    cost = later_static_layers(costmap, cost, rolling=False)
     obstacles = layer(costmap, "costmap_2d::ObstacleLayer")
     if obstacles is not None:
         default = NO_INFORMATION if obstacles.get("track_unknown_space", costmap.get("track_unknown_space", False)) \
@@ -321,6 +323,27 @@ def unseen_cell_cost(mb):
         method = obstacles.get("combination_method", 1)
         if default != NO_INFORMATION and (method == 0 or (method == 1 and (cost == NO_INFORMATION or cost < default))):
             cost = default
+    return cost
+
+
+def static_layers(costmap):
+    """The params of each StaticLayer in ``costmap``'s plugins, in order."""
+    return [costmap.get(p["name"], {}) for p in costmap.get("plugins", []) if p["type"] == "costmap_2d::StaticLayer"]
+
+
+def later_static_layers(costmap, cost, rolling):
+    """The cost of an unseen cell after the StaticLayers past the first (the zones' mask: -1 where no zone is,
+    zones/mask.py) wrote it over ``cost``. Not rolling: use_maximum is updateWithMax, which skips the layer's
+    NO_INFORMATION and otherwise replaces an unknown master cell (costmap_layer.cpp 63-87), else
+    updateWithTrueOverwrite (89-106). Rolling: the larger of the two, or the layer's (static_layer.cpp 313-344)."""
+    for static in static_layers(costmap)[0 if rolling else 1:]:
+        mine = static_layer_cost(static, -1)
+        if not static.get("use_maximum", False):
+            cost = mine
+        elif rolling:
+            cost = max(cost, mine)
+        elif mine != NO_INFORMATION and (cost == NO_INFORMATION or cost < mine):
+            cost = mine
     return cost
 
 
@@ -375,6 +398,8 @@ def test_navigation_never_plans_through_space_the_saved_map_has_not_seen():
     # allow_unknown false does not keep navfn out of unseen space the costmap turned into free space:
     ("navigation", {"global_costmap__static_layer__track_unknown_space": False}, "as free"),
     ("navigation", {"global_costmap__obstacle_layer__track_unknown_space": False}, "as free"),
+    # the zones' mask read as free where no zone is would write free over the map's unseen cells:
+    ("navigation", {"global_costmap__keepout_layer__track_unknown_space": False}, "as free"),
 ], ids=lambda v: change_id(v))
 def test_each_key_the_unseen_space_rules_rest_on_decides_them(mode, change, planned):
     assert plans_through_unseen_space(move_base_params(mode, **change)) == planned
@@ -438,10 +463,8 @@ def local_costmap_unseen_cost(mb):
     cells are skipped (costmap_layer.cpp 76-79) and a static layer would write them (89-106).
     """
     costmap = mb["local_costmap"]
-    static = layer(costmap, "costmap_2d::StaticLayer")
-    if static is not None:
-        return static_layer_cost(static, GMAPPING_UNKNOWN)
-    return NO_INFORMATION if costmap.get("track_unknown_space", False) else FREE_SPACE
+    default = NO_INFORMATION if costmap.get("track_unknown_space", False) else FREE_SPACE
+    return later_static_layers(costmap, default, rolling=True)
 
 
 @pytest.mark.parametrize("mode", sorted(MODES))
@@ -450,6 +473,9 @@ def test_dwa_drives_into_space_the_map_has_not_seen(mode):
     134-143, -2): a local costmap that kept unknown space would stop the robot at every frontier."""
     assert local_costmap_unseen_cost(move_base_params(mode)) == FREE_SPACE
     assert local_costmap_unseen_cost(move_base_params(mode, local_costmap__track_unknown_space=True)) == NO_INFORMATION
+    if mode == "navigation":  # the zones' mask read as unknown where no zone is would win every cell's max
+        changed = move_base_params(mode, local_costmap__keepout_layer__track_unknown_space=True)
+        assert local_costmap_unseen_cost(changed) == NO_INFORMATION
 
 
 # --- keeping the footprint off door jambs (issue 33): costmap_2d's inflation, navfn's path, DWA ---
@@ -668,3 +694,63 @@ def test_the_costmaps_wait_as_long_as_map_to_odom_is_dated_ahead():
 def test_gmapping_as_shipped_before_dated_map_to_odom_only_a_period_ahead():
     period = read(SHIPPED, "gmapping")["transform_publish_period"]
     assert not leads_a_stall(period, period)  # no tf_delay: slam_gmapping.cpp takes the period
+
+
+# --- costmap_2d's StaticLayer on keepout_map: the owner's zones (issue 36) ---------------------------
+
+def keepout_problems_in(mb):
+    """Why move_base's costmaps, as roslaunch gives them in navigation, would not keep out of the zones."""
+    return ["{}: {}".format(name, p) for name in ("global_costmap", "local_costmap")
+            for p in costmap_rules.keepout_problems(mb[name], TOPIC)]
+
+
+def test_both_costmaps_read_the_zones_mask_as_the_server_publishes_it():
+    """A second StaticLayer on keepout_map in each costmap (static_layer.cpp 62-124), adding to the map
+    (use_maximum: costmap_layer.cpp 63-87), taking every new mask (first_map_only false, 219-224), the
+    mask's -1 read as unknown in the global costmap and as free in the rolling local one (150-164, 313-344),
+    100 as lethal, before inflation (inflation_layer.cpp 219-231)."""
+    assert keepout_problems_in(move_base_params("navigation")) == []
+
+
+def test_mapping_s_costmaps_wait_for_no_mask():
+    """The server publishes no mask under gmapping's growing map, and a StaticLayer waits for its first
+    message at start-up (static_layer.cpp 94-99): a keepout layer while mapping would hang move_base."""
+    mb = move_base_params("mapping")
+    assert [costmap_rules.keepout_layer(mb[name], TOPIC) for name in ("global_costmap", "local_costmap")] == \
+        [None, None]
+
+
+SHIPPED_GLOBAL_LAYERS = [{"name": "static_layer", "type": "costmap_2d::StaticLayer"},
+                         {"name": "obstacle_layer", "type": "costmap_2d::ObstacleLayer"},
+                         {"name": "inflation_layer", "type": "costmap_2d::InflationLayer"},
+                         {"name": "keepout_layer", "type": "costmap_2d::StaticLayer"}]
+
+
+@pytest.mark.parametrize("change,why", [
+    ({"global_costmap__keepout_layer__use_maximum": False}, "global_costmap: use_maximum is false"),
+    ({"local_costmap__keepout_layer__first_map_only": True}, "local_costmap: first_map_only is true"),
+    ({"global_costmap__keepout_layer__track_unknown_space": False}, "global_costmap: the mask's cells outside"),
+    ({"local_costmap__keepout_layer__track_unknown_space": True}, "local_costmap: the mask's cells outside"),
+    ({"global_costmap__keepout_layer__unknown_cost_value": 100}, "not read as lethal"),
+    ({"global_costmap__keepout_layer__map_topic": "keepout"}, "global_costmap: no costmap_2d::StaticLayer reads"),
+    ({"global_costmap__map_topic": "map"}, "global_costmap: no costmap_2d::StaticLayer reads"),
+    ({"global_costmap__keepout_layer__enabled": False}, "disabled"),
+    ({"global_costmap__plugins": SHIPPED_GLOBAL_LAYERS}, "after the inflation layer"),
+], ids=lambda v: ("layer order" if "global_costmap__plugins" in v else change_id(v)) if isinstance(v, dict) else "")
+def test_a_costmap_that_would_let_the_robot_into_a_zone_is_caught(change, why):
+    assert any(why in p for p in keepout_problems_in(move_base_params("navigation", **change))), why
+
+
+def test_the_simulation_obeys_the_zones_only_where_the_real_costmaps_would(tmp_path):
+    """The sim reads the same files the same way (zones/costmap_rules.py move_base_costmaps, as
+    move_base.launch loads them): a copy with the keepout layer after inflation does not obey."""
+    assert costmap_rules.obeys_zones(SHIPPED, TOPIC) == (True, [])
+    folder = tmp_path / "config"
+    shutil.copytree(SHIPPED, str(folder))
+    text = (folder / "global_costmap.yaml").read_text()
+    keepout = '    - {name: keepout_layer, type: "costmap_2d::StaticLayer"}\n'
+    inflation = '    - {name: inflation_layer, type: "costmap_2d::InflationLayer"}\n'
+    (folder / "global_costmap.yaml").write_text(text.replace(keepout, "").replace(inflation, inflation + keepout))
+    obeys, why = costmap_rules.obeys_zones(str(folder), TOPIC)
+    assert not obeys and "after the inflation layer" in why[0]
+    assert costmap_rules.obeys_zones(SHIPPED, TOPIC, mapping=True)[0] is False

@@ -69,6 +69,7 @@ class Server(ServerParts):
         runs = self._build_runs(stack, robot, store)
         explorer = self.explorer = self._build_explorer(stack, robot)
         self._build_recovery(stack, robot, store)
+        self._build_zones(stack, robot, store)
         self._build_docking(stack, robot, store)
         self.happenings = self._build_happenings(stack, robot)
         self._go_home_when_low(stack, robot, runs, self.happenings)

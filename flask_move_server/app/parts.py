@@ -92,6 +92,25 @@ class ServerParts:
         robot.recovery = recovery
         return recovery
 
+    def _build_zones(self, stack, robot, store):
+        """The active map's zones: goals refused in them, and their mask on ``keepout_map`` (``zones/``)."""
+        from flask_move_server.recovery import footprint
+        from flask_move_server.ros.keepout import KeepoutPublisher
+        from flask_move_server.sim.runner import default_navigation_config
+        from flask_move_server.zones.guard import ZoneGuard
+
+        polygon = footprint.read(self.config.sim.navigation_config or default_navigation_config())
+        guard = ZoneGuard(store, footprint.inscribed_radius(polygon), footprint.circumscribed_radius(polygon))
+        robot.zones = guard
+
+        def pose():
+            reading = robot.pose.current() if self._node.connected else None
+            return reading.pose if reading is not None else None
+        keepout = KeepoutPublisher(self._node, store, self.maps.source, guard, pose, events=self.events)
+        stack.callback(keepout.close)
+        self.keepout = keepout
+        return guard
+
     def _build_docking(self, stack, robot, store):
         """Docking onto the active map's charger (``dock/``); closed before the robot."""
         from flask_move_server.dock.charge_signal import signal_of

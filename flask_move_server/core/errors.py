@@ -154,6 +154,27 @@ class BatteryCritical(MoveServerError, RuntimeError):
     code = "battery_critical"
 
 
+class BadZone(BadRequest):
+    """A zone that cannot be kept: a wrong kind, too few or too many corners, a shape that crosses itself."""
+
+    code = "bad_zone"
+
+
+class UnknownZone(MoveServerError, KeyError):
+    """No zone of that name on this map."""
+
+    code = "unknown_zone"
+
+    def __str__(self):
+        return self.args[0] if self.args else ""
+
+
+class InZone(MoveServerError, RuntimeError):
+    """A goal, a route's stop or the dock inside (or too near) a zone the robot keeps out of."""
+
+    code = "in_zone"
+
+
 class Pressed(MoveServerError, RuntimeError):
     """A joystick command that would push the robot on against what it is pressed on."""
 

@@ -46,6 +46,7 @@ class Robot:
         self.ground_truth = None  # with --sim: the simulated robot's true pose (a callable), shown in /status
         self.recovery = None  # recovery/recovery.py: the stuck state, told of every goal and stop
         self.docking = None  # dock/docking.py: home to the charger; a goal while docked backs off it first
+        self.zones = None  # zones/guard.py: goals in a zone the robot keeps out of are refused
 
     def goto(self, goal, via="POST /goto"):
         """Send the robot to ``goal``; returns the goal's sequence number. Ends a run under way, saying
@@ -69,6 +70,7 @@ class Robot:
 
     def _send(self, goal, ends_run, docking=False):
         self._refuse_motion("goals are")
+        self.check_zones(goal.pose, goal.target)  # before anything moves or ends: 409 in_zone
         if self.docking is not None and not docking:
             self.docking.before_goal()  # off the charger first: move_base plans nothing from on top of it
         ticket = None
@@ -270,6 +272,11 @@ class Robot:
         """Back straight off the charger: the dock status. DockFailed when not on one."""
         self._check_docking()
         return self.docking.undock()
+
+    def check_zones(self, pose, target=None):
+        """InZone when ``pose`` lies in (or too near) an enabled zone of the map (zones/guard.py)."""
+        if self.zones is not None:
+            self.zones.check(pose, target)
 
     def dock_status(self):
         """``/status`` ``dock`` (dock/docking.py), or None on a robot built without docking."""

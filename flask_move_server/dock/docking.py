@@ -138,6 +138,7 @@ class Docking:
         with self._lock:
             if self._state in ON_THE_DOCK + (GOING, APPROACHING):
                 return self._status()
+        self._robot.check_zones(staging_pose(waypoint, self.config.staging_distance), waypoint.name)
         going = SAID[GOING].format(place=waypoint.name)
         if keep_run:
             self._robot.halt_for(why or going)

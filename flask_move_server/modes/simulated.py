@@ -112,10 +112,27 @@ class SimulatedStack:
         grid, planner = self._navigation_map(map_yaml)
         self._parts.append(MapServerStandIn(self._node, grid, self._config.ros.frames.map,
                                             self._config.sim.map_topic))
+        self._keep_out(grid, planner)
         self._parts.append(NoMotionUpdateStandIn(self._node, self._world))
         self._world.localizing.set()
         self._move_base.set_planner(planner)
         self._move_base.serve()
+
+    def _keep_out(self, grid, plain):
+        """The zones' mask over ``grid``, where the robot's costmap configuration reads it (sim/keepout.py)."""
+        from flask_move_server.sim.keepout import KeepoutStandIn
+        from flask_move_server.sim.runner import default_navigation_config
+        from flask_move_server.zones import TOPIC
+        from flask_move_server.zones.costmap_rules import obeys_zones
+
+        sim = self._config.sim
+        obeys, why = obeys_zones(sim.navigation_config or default_navigation_config(), TOPIC)
+        if not obeys:
+            log.warning("simulated move_base: the costmaps as configured do not read the zones on %s (%s), so "
+                        "neither does the simulation: docs/zones.md", TOPIC, "; ".join(why))
+            return
+        self._parts.append(KeepoutStandIn(self._node, TOPIC, grid, self._move_base, sim.robot_radius,
+                                          sim.safety_margin, plain))
 
     def _navigation_map(self, map_yaml):
         """(grid, planner) of ``map_yaml``, or of the world's own map for None; StackFailed if unreadable."""

@@ -21,6 +21,7 @@ from flask_move_server.robotctl import doctor as client_doctor
 from flask_move_server.robotctl import maps as client_maps
 from flask_move_server.robotctl import modes as client_modes
 from flask_move_server.robotctl import routes as client_routes
+from flask_move_server.robotctl import zones as client_zones
 from flask_move_server.robotctl.api import DEFAULT_TIMEOUT, DEFAULT_URL, ExitStatus, RobotClient, dumps, waypoint_path
 from flask_move_server.robotctl.text import (
     LiveLine,
@@ -230,6 +231,7 @@ def build_parser():
     p.set_defaults(run=cmd_goto)
     sub.add_parser("stop", help="cancel the goal and stop").set_defaults(run=cmd_stop)
     client_dock.add_parsers(sub, _positive)
+    client_zones.add_parsers(sub)
     sub.add_parser("back-out", help="a robot that says it is stuck backs out by itself").set_defaults(
         run=cmd_back_out)
     p = sub.add_parser("estop", help="latch the e-stop ('estop release' lifts it)")

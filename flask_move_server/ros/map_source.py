@@ -138,6 +138,11 @@ class MapSource:
             raise self._no_map()
         return version, self._grid(version, raw)
 
+    def raw(self):
+        """``(version, serialized bytes)`` of the map held now, None when none is (the mask copies its header)."""
+        with self._cond:
+            return None if self._raw is None else (self._version, self._raw)
+
     def _no_map(self):
         return NoMap("No map is published on the topic {} now: the robot is idle, or its mapping or navigation "
                      "is still starting (GET /mode says which).".format(rospy.resolve_name(self.topic)))

@@ -31,6 +31,7 @@ from flask_move_server.core.errors import (
     MapFull,
     UnknownRoute,
     UnknownWaypoint,
+    UnknownZone,
     WaypointExists,
     WaypointFileError,
     WaypointInUse,
@@ -48,7 +49,9 @@ from flask_move_server.waypoints.yaml_format import (
     parse,
     routes_of,
     waypoints_of,
+    zones_of,
 )
+from flask_move_server.zones import MAX_ZONES, check_zone_name
 
 log = logging.getLogger(__name__)
 
@@ -76,6 +79,7 @@ class WaypointStore:
         self._waypoints = {}  # the last good set
         self._routes = {}  # and its routes, {name: Route} in file order
         self._dock = None  # the name under dock: in its file (None: none marked)
+        self._zones = {}  # {name: Zone} in file order
         self._good_text = None  # its file text: what .bak becomes on the next save
         self._loaded = False
         self._stamp = None
@@ -100,7 +104,7 @@ class WaypointStore:
                 return
             log.info("waypoints: now serving %s", path)
             self.path = path
-            self._waypoints, self._routes, self._good_text, self._loaded = {}, {}, None, False
+            self._waypoints, self._routes, self._zones, self._good_text, self._loaded = {}, {}, {}, None, False
             self._stamp = self._problem = self._dock = None
             self.version += 1
             self._refresh()
@@ -167,6 +171,24 @@ class WaypointStore:
                 return self._routes[name]
             except KeyError:
                 raise _unknown_route(name, self._routes)
+
+    def zones(self):
+        """Every zone of the map, in file order."""
+        with self._lock:
+            self._refresh()
+            found = list(self._zones.values())
+        self._announce()
+        return found
+
+    def get_zone(self, name):
+        """The zone called ``name`` (in any Unicode normal form); UnknownZone with close names if none."""
+        name = check_zone_name(name)
+        with self._lock:
+            self._refresh()
+            try:
+                return self._zones[name]
+            except KeyError:
+                raise _unknown_zone(name, self._zones)
 
     @property
     def problem(self):
@@ -239,6 +261,30 @@ class WaypointStore:
                 raise _unknown_route(name, routes)
             del routes[name]
 
+    def put_zone(self, zone):
+        """Add or replace ``zone`` (a Zone); True when it is new. Saved before returning."""
+        with self._edit() as draft:
+            created = zone.name not in draft.zones
+            draft.zones[zone.name] = zone
+        return created
+
+    def switch_zone(self, name, enabled):
+        """Enable or disable the zone ``name``; returns it as saved. Saved before returning."""
+        name = check_zone_name(name)
+        with self._edit() as draft:
+            if name not in draft.zones:
+                raise _unknown_zone(name, draft.zones)
+            draft.zones[name] = draft.zones[name].switched(enabled)
+            return draft.zones[name]
+
+    def delete_zone(self, name):
+        """Remove the zone ``name``. Saved before returning."""
+        name = check_zone_name(name)
+        with self._edit() as draft:
+            if name not in draft.zones:
+                raise _unknown_zone(name, draft.zones)
+            del draft.zones[name]
+
     def rename(self, old, new, overwrite=False):
         """Give waypoint ``old`` the name ``new`` in one save, keeping its place in the file.
 
@@ -272,12 +318,13 @@ class WaypointStore:
         # readers never wait behind a writer that waits for another process.
         with waypoints_file.file_lock(self.path + ".lock", self.lock_timeout), self._lock:
             self._refresh(strict=True)
-            draft = _Draft(dict(self._waypoints), dict(self._routes), self._dock)
+            draft = _Draft(dict(self._waypoints), dict(self._routes), self._dock, dict(self._zones))
             yield draft
             waypoints, routes = draft.waypoints, draft.routes
             _check_room(waypoints, routes, self._waypoints, self._routes)
-            self._save(waypoints, routes, draft.dock)
-            self._waypoints, self._routes, self._dock = waypoints, routes, draft.dock
+            _check_zone_room(draft.zones, self._zones)
+            self._save(waypoints, routes, draft.dock, draft.zones)
+            self._waypoints, self._routes, self._dock, self._zones = waypoints, routes, draft.dock, draft.zones
             self.version += 1
         self._announce()
 
@@ -290,7 +337,7 @@ class WaypointStore:
             return
         try:
             text = waypoints_file.read(self.path)
-            waypoints, routes, dock = self._load(text)
+            waypoints, routes, dock, zones = self._load(text)
         except WaypointFileError as exc:
             self._broken(stamp, str(exc))
             if strict:
@@ -308,7 +355,7 @@ class WaypointStore:
             log.warning("%s: its dock is %s, a waypoint it does not have: the map has no dock until one is marked "
                         "(PUT /waypoints/<name> with \"dock\": true)", self.path, shown(dock))
         self._waypoints, self._routes, self._good_text, self._loaded = waypoints, routes, text, True
-        self._stamp, self._problem, self._dock = stamp, None, dock
+        self._stamp, self._problem, self._dock, self._zones = stamp, None, dock, zones
 
     def _broken(self, stamp, problem):
         """Remember why the file cannot be loaded: logged once per version of the file, not per request."""
@@ -327,10 +374,10 @@ class WaypointStore:
         if loss:
             raise WaypointFileError("{} {}, but the last good version had {} waypoints".format(self.path, loss, known))
         return Document(waypoints_of(entries, self.path), routes_of(entries, self.path),
-                        marked_dock(entries, self.path))
+                        marked_dock(entries, self.path), zones_of(entries, self.path))
 
-    def _save(self, waypoints, routes, dock):
-        text = dump(waypoints.values(), routes.values(), dock)
+    def _save(self, waypoints, routes, dock, zones):
+        text = dump(waypoints.values(), routes.values(), dock, zones.values())
         if len(text) > MAX_SAVED and len(text) > len(self._good_text or ""):
             raise MapFull("This change would make the map's waypoints file {} characters long; it holds at most {} "
                           "(its waypoints and routes). Nothing was changed: delete routes or waypoints this map no "
@@ -347,10 +394,25 @@ class WaypointStore:
 
 
 class _Draft:
-    """A change being made (``WaypointStore._edit``): the waypoints, routes and dock it will save."""
+    """A change being made (``WaypointStore._edit``): the waypoints, routes, dock and zones it will save."""
 
-    def __init__(self, waypoints, routes, dock):
-        self.waypoints, self.routes, self.dock = waypoints, routes, dock
+    def __init__(self, waypoints, routes, dock, zones):
+        self.waypoints, self.routes, self.dock, self.zones = waypoints, routes, dock, zones
+
+
+def _check_zone_room(zones, before):
+    """MapFull when a change adds zones past what a map keeps."""
+    if len(zones) > MAX_ZONES and len(zones) > len(before):
+        raise MapFull("A map keeps at most {} zones, and this one has {}. Nothing was changed: delete zones it no "
+                      "longer needs (DELETE /zones/<name>) first.".format(MAX_ZONES, len(before)))
+
+
+def _unknown_zone(name, zones):
+    """UnknownZone for ``name``, suggesting close zone names, else where to find them."""
+    message = "No zone named {} on this map.".format(shown(name))
+    close = suggest(name, zones)
+    message += " Did you mean: {}?".format(", ".join(shown(c) for c in close)) if close else " GET /zones lists them."
+    return UnknownZone(message)
 
 
 def _check_room(waypoints, routes, before_waypoints, before_routes):

@@ -8,14 +8,17 @@ The format is the mapping guide's, with the map's dock and routes (if any) besid
     dock: Ladestation                 # the waypoint where the robot charges (none: one named dock, if any)
     routes:
       rounds: {waypoints: [kitchen, dock], loops: 1, dwell: 5.0, on_failure: skip, schedule: ["21:30"]}
+    zones:
+      Katzenecke: {kind: keepout, polygon: [[2.0, 1.0], [3.0, 1.0], [3.0, 2.0]], enabled: true}
 
 (``{x: .., y: .., yaw: ..}`` per entry loads too; each route is read by
-:func:`~flask_move_server.missions.route.make_route`). The text is read by
+:func:`~flask_move_server.missions.route.make_route`, each zone by
+:func:`~flask_move_server.zones.make_zone`). The text is read by
 :mod:`~flask_move_server.config.guarded_yaml` (a name given twice, anchors, aliases and deep
 nesting refused); whatever makes a file unreadable is a :class:`WaypointFileError` saying the
 line and what is wrong, never the file's text. :func:`dump` writes the seed format back, with
-numbers PyYAML reads as floats, ``dock:`` only when one is marked and ``routes:`` only when there
-are routes. Pure: PyYAML only.
+numbers PyYAML reads as floats, ``dock:`` only when one is marked, ``routes:`` only when there
+are routes and ``zones:`` only when there are zones. Pure: PyYAML only.
 """
 
 import collections
@@ -25,7 +28,7 @@ import re
 import yaml
 
 from flask_move_server.config import guarded_yaml
-from flask_move_server.core.errors import BadRoute, BadWaypoint, WaypointFileError, shown
+from flask_move_server.core.errors import BadRoute, BadWaypoint, BadZone, WaypointFileError, shown
 from flask_move_server.missions.route import make_route
 from flask_move_server.waypoints import (
     NAME_RULE,
@@ -35,6 +38,7 @@ from flask_move_server.waypoints import (
     check_coordinate,
     check_name,
 )
+from flask_move_server.zones import make_zone
 
 _PLAIN_KEY_RE = re.compile(r"[^\W\d][\w-]*")  # a letter (any script) or '_', then letters, digits, '_', '-'
 _BOUNDS = (("x", POSITION_LIMIT), ("y", POSITION_LIMIT), ("yaw", YAW_LIMIT))
@@ -43,23 +47,26 @@ _BOUNDS = (("x", POSITION_LIMIT), ("y", POSITION_LIMIT), ("yaw", YAW_LIMIT))
 class Entries(dict):
     """The raw ``waypoints:`` mapping, knowing the line each name is on (for errors), whether the
     text ended open, right after a bare value (``guarded_yaml.Document.open_end``), and the raw
-    ``routes:`` mapping beside it (``{}`` when the file has none) and the ``dock:`` name (None when none)."""
+    ``routes:`` and ``zones:`` mappings beside it (``{}`` when the file has none) and the ``dock:`` name
+    (None when none)."""
 
-    def __init__(self, entries, lines, open_end=False, routes=None, dock=None):
+    def __init__(self, entries, lines, open_end=False, routes=None, dock=None, zones=None):
         super().__init__(entries)
         self.lines = lines
         self.open_end = open_end
         self.routes = routes or {}
         self.dock = dock
+        self.zones = zones or {}
 
     def where(self, name, section="waypoints"):
         line = self.lines.get((section, name))
         return ", line {}".format(line) if line else ""
 
 
-class Document(collections.namedtuple("Document", "waypoints routes dock")):
-    """What a waypoints file holds: ordered ``{name: Waypoint}``, ordered ``{name: Route}`` and the name
-    of the waypoint marked as the dock (None when none is: see :func:`dock_of`)."""
+class Document(collections.namedtuple("Document", "waypoints routes dock zones")):
+    """What a waypoints file holds: ordered ``{name: Waypoint}``, ordered ``{name: Route}``, the name
+    of the waypoint marked as the dock (None when none is: see :func:`dock_of`) and ordered
+    ``{name: Zone}``."""
 
 
 DOCK = "dock"  # before a dock was marked, the waypoint of this name was the dock: it still is
@@ -84,7 +91,8 @@ def parse_document(text, source="waypoints"):
     store's question, not the format's.
     """
     entries = entries_of(text, source)
-    return Document(waypoints_of(entries, source), routes_of(entries, source), marked_dock(entries, source))
+    return Document(waypoints_of(entries, source), routes_of(entries, source), marked_dock(entries, source),
+                    zones_of(entries, source))
 
 
 def entries_of(text, source="waypoints"):
@@ -95,13 +103,14 @@ def entries_of(text, source="waypoints"):
         raise WaypointFileError("{} is not valid YAML: {}".format(source, exc))
     if data is None:
         return None
-    if not isinstance(data, dict) or set(data) - {"waypoints", "routes", "dock"}:
-        raise WaypointFileError("{} must hold one mapping, 'waypoints: {{name: [x, y, yaw]}}', and 'dock:' and "
-                                "'routes:' beside it if the map has them".format(source))
-    entries, routes = data.get("waypoints"), data.get("routes")
-    if entries is None and routes is not None:
-        raise WaypointFileError("{}, line {}: 'routes' needs 'waypoints:' beside it (write 'waypoints: {{}}' "
-                                "for none)".format(source, lines.get(("routes",), 1)))
+    if not isinstance(data, dict) or set(data) - {"waypoints", "routes", "dock", "zones"}:
+        raise WaypointFileError("{} must hold one mapping, 'waypoints: {{name: [x, y, yaw]}}', and 'dock:', "
+                                "'routes:' and 'zones:' beside it if the map has them".format(source))
+    entries, routes, zones = data.get("waypoints"), data.get("routes"), data.get("zones")
+    for section, value in (("routes", routes), ("zones", zones)):
+        if entries is None and value is not None:
+            raise WaypointFileError("{}, line {}: '{}' needs 'waypoints:' beside it (write 'waypoints: {{}}' "
+                                    "for none)".format(source, lines.get((section,), 1), section))
     if entries is None:
         return None
     if not isinstance(entries, dict):
@@ -110,7 +119,10 @@ def entries_of(text, source="waypoints"):
     if not isinstance(routes, (dict, type(None))):
         raise WaypointFileError("{}, line {}: 'routes' must map names to routes, 'name: {{waypoints: [names], "
                                 "...}}'".format(source, lines.get(("routes",), 1)))
-    return Entries(entries, lines, open_end, routes, data.get("dock"))
+    if not isinstance(zones, (dict, type(None))):
+        raise WaypointFileError("{}, line {}: 'zones' must map names to zones, 'name: {{kind: keepout, polygon: "
+                                "[[x, y], ...]}}'".format(source, lines.get(("zones",), 1)))
+    return Entries(entries, lines, open_end, routes, data.get("dock"), zones)
 
 
 def marked_dock(entries, source):
@@ -162,6 +174,22 @@ def routes_of(entries, source):
     return routes
 
 
+def zones_of(entries, source):
+    """``{name: Zone}`` of the raw ``zones:`` beside ``entries``; WaypointFileError saying the bad entry's line."""
+    zones = {}
+    for name, entry in (entries.zones if isinstance(entries, Entries) else {}).items():
+        where = entries.where(name, "zones")
+        try:
+            zone = make_zone(name, entry)
+        except BadZone as exc:
+            raise WaypointFileError("{}{}: {}".format(source, where, _unquoted(str(exc), name, entry)))
+        if zone.name in zones:
+            raise WaypointFileError("{}{}: a zone name appears twice (written with its accents composed "
+                                    "differently)".format(source, where))
+        zones[zone.name] = zone
+    return zones
+
+
 def _unquoted(message, name, entry):
     """BadRoute's ``message`` without the text it quotes from the file: the file may be a link to
     anything, so its errors say where and what, never its words (numbers are no secret and stay)."""
@@ -195,14 +223,15 @@ def _coordinate(label, limit, value):
         raise BadWaypoint("{} must be a finite number between {:.0f} and {:.0f}".format(label, -limit, limit))
 
 
-def dump(waypoints, routes=(), dock=None):
-    """The file text for ``waypoints`` (Waypoints) and ``routes`` (Routes), each an iterable in file order,
-    and ``dock``, the name of the waypoint marked as the dock (None: none marked).
+def dump(waypoints, routes=(), dock=None, zones=()):
+    """The file text for ``waypoints`` (Waypoints), ``routes`` (Routes) and ``zones`` (Zones), each an
+    iterable in file order, and ``dock``, the name of the waypoint marked as the dock (None: none marked).
 
-    The seed format, a ``dock:`` line after it only when one is marked and a ``routes:`` block only
-    when there are routes (a file with neither is written back as it was), one line per route.
+    The seed format, a ``dock:`` line after it only when one is marked, a ``routes:`` block only
+    when there are routes and a ``zones:`` block only when there are zones (a file with none of
+    them is written back as it was), one line per route and per zone.
     """
-    waypoints, routes = list(waypoints), list(routes)
+    waypoints, routes, zones = list(waypoints), list(routes), list(zones)
     lines = ["waypoints:" if waypoints else "waypoints: {}"]
     for wp in waypoints:
         coords = ", ".join(_number(v) for v in (wp.x, wp.y, wp.yaw))
@@ -212,7 +241,17 @@ def dump(waypoints, routes=(), dock=None):
     if routes:
         lines.append("routes:")
         lines.extend("  {}: {}".format(_key(route.name), _route_line(route)) for route in routes)
+    if zones:
+        lines.append("zones:")
+        lines.extend("  {}: {}".format(_key(zone.name), _zone_line(zone)) for zone in zones)
     return "\n".join(lines) + "\n"
+
+
+def _zone_line(zone):
+    """One zone as a flow mapping: its kind, its points and whether it is enabled."""
+    field = "polygon" if zone.kind == "keepout" else "line"
+    points = ", ".join("[{}, {}]".format(_number(x), _number(y)) for x, y in zone.points)
+    return "{{kind: {}, {}: [{}], enabled: {}}}".format(zone.kind, field, points, "true" if zone.enabled else "false")
 
 
 def _route_line(route):

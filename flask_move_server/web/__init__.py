@@ -22,6 +22,7 @@ from flask_move_server.web.modes import modes as modes_routes
 from flask_move_server.web.openapi import description
 from flask_move_server.web.routes import WaypointNameConverter, api
 from flask_move_server.web.stuck import stuck
+from flask_move_server.web.zones import zones_api
 
 ast_guard.serialise_ast_parse()  # werkzeug parses each route while ROS threads may format tracebacks
 
@@ -103,6 +104,7 @@ def create_app(config, robot, store, token=None, events=None, modes=None, maps=N
     app.register_blueprint(estop)
     app.register_blueprint(stuck)
     app.register_blueprint(docking)
+    app.register_blueprint(zones_api)
     app.register_blueprint(maps_api)
     app.register_blueprint(missions_api)
     app.register_blueprint(explore_api)

@@ -17,7 +17,7 @@ from flask_move_server.missions import route as routes
 from flask_move_server.missions import run as runs
 from flask_move_server.modes.targets import MODES
 from flask_move_server.waypoints import NAME_RULE, POSITION_LIMIT, YAW_LIMIT
-from flask_move_server.web import explore
+from flask_move_server.web import explore, openapi_zones
 from flask_move_server.web.openapi_schema import (
     NO_FIELDS,
     _components,
@@ -75,6 +75,7 @@ def build(config):
     paths.update(_diagnostics())
     paths.update(_missions())
     paths.update(_explore())
+    paths.update(openapi_zones.paths())
     if config.server.static:
         paths.update(_page())
     return {
