@@ -109,7 +109,7 @@ def test_the_robot_appears_as_one_device_with_every_entity(sim, home, broker):
 def test_the_state_says_what_the_robot_does(sim, home):
     state = home.wait_json(STATE)
     assert set(state) == {"status", "message", "mode", "map", "target", "last_reached", "run", "estop", "pose",
-                          "battery", "dock", "refused"}
+                          "battery", "dock", "refused", "zones"}
     assert state["mode"] == "navigation" and state["estop"] is False
     assert set(state["pose"]) == {"x", "y", "yaw"}
     battery = home.wait_json(STATE, lambda s: s["battery"] is not None)["battery"]
@@ -240,3 +240,29 @@ def test_a_goto_to_the_robot_s_own_topic_is_taken_only_from_its_command_topic(si
 
     time.sleep(1.0)
     assert sim.navigation()["goal_id"] == goal
+
+
+def test_a_zone_is_a_switch_that_keeps_the_robot_out_or_lets_it_in(sim, home, broker):
+    from flask_move_server.zones import zone_object_id
+
+    square = [[1.5, 0.0], [2.5, 0.0], [2.5, 1.3], [1.5, 1.3]]
+    assert sim.put("/zones/Katzenecke", {"kind": "keepout", "polygon": square}).status_code == 201
+    object_id = zone_object_id("Katzenecke")
+    topic = "{}/switch/robot/{}/config".format(PREFIX, object_id)
+    switch = home.wait_json(topic, message="the zone's switch")
+    assert switch["name"] == "Katzenecke: keep out" and switch["state_topic"] == STATE
+    assert switch["command_topic"] == "{}/zone/{}/set".format(ROOT_TOPIC, object_id)
+    assert (switch["payload_on"], switch["payload_off"]) == ("ON", "OFF")
+    home.wait_json(STATE, lambda s: s["zones"] == {object_id: True}, message="the zone on in the state")
+    home.send(switch["command_topic"], "OFF")  # "today the robot may go there"
+    wait_for(lambda: sim.get("/zones/Katzenecke").json()["enabled"] is False, message="the zone switched off")
+    home.wait_json(STATE, lambda s: s["zones"] == {object_id: False}, message="the zone off in the state")
+    home.send(switch["command_topic"], "maybe")
+    refused = home.wait_json(STATE, lambda s: s["refused"] is not None, message="the refusal")["refused"]
+    assert refused["command"] == "zone" and "ON or OFF" in refused["message"]
+    assert sim.get("/zones/Katzenecke").json()["enabled"] is False  # nothing changed
+    home.send(switch["command_topic"], "ON")
+    wait_for(lambda: sim.get("/zones/Katzenecke").json()["enabled"] is True, message="the zone switched on")
+    assert sim.delete("/zones/Katzenecke").status_code == 204
+    wait_for(lambda: home.last(topic) == "", message="the deleted zone's switch removed (an empty config)")
+    assert retained_on(broker, topic) in (None, "")

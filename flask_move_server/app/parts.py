@@ -190,7 +190,7 @@ class ServerParts:
         happenings = self.happenings
         state = RobotState(link, self.robot, self.modes, self.runs, self.explorer, self.events,
                            refused=lambda: commands.refused, battery_heard=home.battery_heard,
-                           last_reached=lambda: (happenings.last_reached or {}).get("name"))
+                           last_reached=lambda: (happenings.last_reached or {}).get("name"), zones=store.zones)
         happenings.listen(lambda name, data: state.changed())  # a goal's end told at once, not a second later
         for part in (home, state):
             stack.callback(part.start().close)

@@ -10,9 +10,10 @@ the Status sensor's attributes; the next command that is taken clears it. Pure: 
 import datetime
 import logging
 
-from flask_move_server.core.errors import MoveServerError, RunConflict
+from flask_move_server.core.errors import BadRequest, MoveServerError, RunConflict, UnknownZone, shown
 from flask_move_server.core.geometry import Goal, Pose2D
 from flask_move_server.process.log_limits import Throttled
+from flask_move_server.zones import zone_object_id
 
 log = logging.getLogger(__name__)
 
@@ -25,7 +26,8 @@ MAX_NAME = 256  # characters of a waypoint or route name taken (a name is at mos
 
 class Commands:
     """``<root>/goto/set``, ``route/set``, ``stop/press``, ``dock/press``, ``pause/press``,
-    ``resume/press``, ``estop/press`` on ``link``, acted on through the robot and the run executor."""
+    ``resume/press``, ``estop/press``, ``zone/<id>/set`` on ``link``, acted on through the robot, the run
+    executor and the waypoint store."""
 
     def __init__(self, link, robot, store, runs, changed=lambda: None, clock=None):
         self._robot, self._store, self._runs = robot, store, runs
@@ -37,6 +39,8 @@ class Commands:
                                 ("dock", PRESS, self.dock), ("pause", PRESS, self.pause),
                                 ("resume", PRESS, self.resume), ("estop", PRESS, self.estop)):
             link.handle("{}/{}/{}".format(link.root, name, kind), self._guarded(name, act))
+        self._zone_prefix = link.root + "/zone/"
+        link.handle(self._zone_prefix + "+/set", self._zone_switch)
 
     def _guarded(self, name, act):
         def command(payload):
@@ -55,6 +59,20 @@ class Commands:
         target = Goal(Pose2D(waypoint.x, waypoint.y, waypoint.yaw), waypoint.name)
         seq = self._robot.goto(target, via=VIA.format(topic))
         self._lines.info("MQTT: goal %d to %s", seq, waypoint.name)
+
+    def _zone_switch(self, payload, topic):
+        """A zone's switch (``<root>/zone/<object id>/set``, ON or OFF): the zone of that id kept out or not."""
+        object_id = topic[len(self._zone_prefix):-len("/set")]
+        self._guarded("zone", lambda text: self.zone(object_id, text))(payload)
+
+    def zone(self, object_id, payload):
+        if payload not in ("ON", "OFF"):
+            raise BadRequest("A zone's switch takes ON or OFF, not {}.".format(shown(payload[:MAX_NAME])))
+        zone = next((z for z in self._store.zones() if zone_object_id(z.name) == object_id), None)
+        if zone is None:
+            raise UnknownZone("No zone of this map has that switch (it was deleted or renamed).")
+        self._store.switch_zone(zone.name, payload == "ON")
+        self._lines.info("MQTT: zone %s %s", zone.name, "kept out" if payload == "ON" else "allowed")
 
     def dock(self, _payload):
         """The Dock button: home onto the map's charger, whatever its name (dock/docking.py); NoDock without one."""

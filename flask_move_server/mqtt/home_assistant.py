@@ -3,7 +3,8 @@
 Retained configs under ``<prefix>/<component>/<robot>/<object>/config`` (docs/home-assistant.md):
 selects Go to (the active map's waypoints) and Route, buttons Stop, Dock, Pause, Resume, E-stop,
 sensors Status (its attributes: the sentence, the last refused command, the run), Target, Mode,
-Map, Last reached, Battery (once the robot has heard one), and the binary sensor E-stop. Every
+Map, Last reached, Battery (once the robot has heard one), the binary sensor E-stop, and a switch
+per zone of the active map ("Katzenecke: keep out"; a deleted zone's switch is removed). Every
 entity reads ``<root>/state`` and is available while ``<root>/availability`` says ``online``.
 
 Published at each connect and again when Home Assistant says ``online`` on ``<prefix>/status``
@@ -18,13 +19,15 @@ import logging
 import threading
 
 from flask_move_server import __version__
+from flask_move_server.zones import zone_object_id
 
 log = logging.getLogger(__name__)
 
 MANUFACTURER = "flask-move-server"
 MODEL = "ROS 1 robot"
 NONE = "None"  # what Home Assistant's MQTT select and sensor read as "no value"
-WAKING_KINDS = ("waypoints", "map", "mode")
+WAKING_KINDS = ("waypoints", "map", "mode", "zone")
+SWITCH = "/switch/"  # the zones' switches: one per zone, removed with it
 
 BUTTONS = (("stop", "Stop", "mdi:stop"), ("dock", "Dock", "mdi:home-import-outline"),
            ("pause", "Pause", "mdi:pause"), ("resume", "Resume", "mdi:play"),
@@ -36,9 +39,11 @@ SENSORS = (("target", "Target", "mdi:map-marker-path", "value_json.target"),
            ("dock", "Dock", "mdi:ev-station", "value_json.dock"))
 
 
-def discovery(prefix, root, robot, device, waypoints, routes, battery_known, enabled=True, vda_connection=None):
+def discovery(prefix, root, robot, device, waypoints, routes, battery_known, enabled=True, vda_connection=None,
+              zones=()):
     """Every ``(config topic, payload)`` of the robot's entities; payload "" removes one.
 
+    ``zones``: the active map's Zones, a switch each ("Katzenecke: keep out", on while it keeps the robot out).
     ``vda_connection``: the VDA 5050 ``connection`` topic, which holds the connection's one last will
     when the robot is a VDA 5050 vehicle too: Home Assistant then follows it beside ``availability``.
     """
@@ -73,6 +78,7 @@ def discovery(prefix, root, robot, device, waypoints, routes, battery_known, ena
                                           "state_class": "measurement", "state_topic": state,
                                           "value_template": _or_none("value_json.battery.percentage "
                                                                      "if value_json.battery else none")}))
+    configs += [("switch", zone_object_id(zone.name), _zone_switch(root, state, zone)) for zone in zones]
     out = []
     for component, obj, config in configs:
         topic = "{}/{}/{}/{}/config".format(prefix, component, robot, obj)
@@ -81,6 +87,14 @@ def discovery(prefix, root, robot, device, waypoints, routes, battery_known, ena
         payload = json.dumps(dict(common, unique_id=unique_id, **config), ensure_ascii=False, sort_keys=True)
         out.append((topic, payload if keep else ""))
     return out
+
+
+def _zone_switch(root, state, zone):
+    object_id = zone_object_id(zone.name)
+    return {"name": "{}: keep out".format(zone.name), "icon": "mdi:wall" if zone.kind == "wall" else "mdi:cancel",
+            "command_topic": "{}/zone/{}/set".format(root, object_id), "payload_on": "ON", "payload_off": "OFF",
+            "state_topic": state, "value_template": "{{{{ 'ON' if (value_json.zones or {{}}).get('{}') else 'OFF' }}}}"
+            .format(object_id)}
 
 
 def _or_none(expression):
@@ -149,10 +163,14 @@ class HomeAssistant:
         if not self._link.connected:
             return 0
         told = 0
-        for topic, payload in self.configs():
+        configs = self.configs()
+        gone = {topic for topic in self._told if SWITCH in topic} - {topic for topic, _ in configs}
+        for topic, payload in configs + [(topic, "") for topic in sorted(gone)]:  # a deleted zone's switch goes
             if self._told.get(topic) != payload and self._link.publish(topic, payload, retain=True):
                 self._told[topic] = payload
                 told += 1
+        for topic in gone:
+            self._told.pop(topic, None)
         return told
 
     def configs(self):
@@ -160,7 +178,7 @@ class HomeAssistant:
         routes = [route.name for route in self._store.routes()]
         return discovery(self._config.discovery_prefix, self._link.root, self._robot_name, self._device,
                          waypoints, routes, self._battery_known, enabled=self._config.enabled,
-                         vda_connection=self._vda_connection)
+                         vda_connection=self._vda_connection, zones=self._store.zones())
 
     def close(self):
         self._stop.set()

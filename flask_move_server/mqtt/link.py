@@ -68,6 +68,16 @@ class MqttLink:
         over ``max_payload`` bytes is dropped, and told to ``too_big(size)`` (quick: paho's thread)."""
         self._handlers[topic] = (callback, takes_retained, max_payload, too_big)
 
+    def _matching(self, topic):
+        """The handler of a pattern with ``+`` levels (``root/zone/+/set``) that ``topic`` matches, its callback
+        told the topic too; None when none does."""
+        levels = topic.split("/")
+        for pattern, (callback, *rest) in self._handlers.items():
+            parts = pattern.split("/")
+            if "+" in parts and len(parts) == len(levels) and all(p in ("+", t) for p, t in zip(parts, levels)):
+                return (lambda text, callback=callback: callback(text, topic)), *rest
+        return None
+
     def set_will(self, topic, payload):
         """The broker's last will (one per connection): retained ``payload`` on ``topic``; before :meth:`start`.
         ``<root>/availability`` says ``offline`` otherwise."""
@@ -141,7 +151,7 @@ class MqttLink:
             if not self._closing.is_set():
                 self.identity.heard(topic, payload, retained)
             return
-        handler = self._handlers.get(topic)
+        handler = self._handlers.get(topic) or self._matching(topic)
         if handler is None:
             return
         callback, takes_retained, max_payload, too_big = handler

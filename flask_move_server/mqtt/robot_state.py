@@ -1,7 +1,8 @@
 """``<root>/state``: what the robot is doing, one retained JSON object, told when it changes.
 
 ``{"status", "message", "mode", "map", "target", "last_reached", "run", "estop", "pose",
-"battery", "dock", "refused"}`` (docs/home-assistant.md). One thread builds it once a second and at once
+"battery", "dock", "refused", "zones"}`` (docs/home-assistant.md; ``zones``: each zone's switch id, on
+or off). One thread builds it once a second and at once
 when something is told on the event bus (a mode, a map, waypoints, a run, an exploration, the
 e-stop, a goal's end) and publishes it when it differs from the last one told. The pose alone
 changing is told at most once a second (``POSE_PERIOD``), and never more than ``MIN_PERIOD``
@@ -17,13 +18,14 @@ import threading
 import time
 
 from flask_move_server.core.reporter import battery_news
+from flask_move_server.zones import zone_object_id
 
 log = logging.getLogger(__name__)
 
 PERIOD = 1.0  # s between looks when nothing is told
 POSE_PERIOD = 1.0  # s: a moving robot's pose, at most this often
 MIN_PERIOD = 0.2  # s between two states, whatever changed
-WAKING_KINDS = ("mode", "map", "waypoints", "run", "explore", "estop", "stuck", "dock")
+WAKING_KINDS = ("mode", "map", "waypoints", "run", "explore", "estop", "stuck", "dock", "zone")
 DOCKING = ("going", "approaching", "undocking")  # dock/docking.py's states under way: "docking"
 ON_THE_DOCK = ("docked", "charging")
 RUNNING_EXPLORATION = ("starting", "exploring", "returning", "saving")
@@ -36,11 +38,12 @@ class RobotState:
 
     def __init__(self, link, robot, modes=None, runs=None, explorer=None, events=None,
                  refused=lambda: None, last_reached=lambda: None, battery_heard=lambda: None,
-                 clock=time.monotonic):
+                 clock=time.monotonic, zones=lambda: ()):
         self.topic = link.root + "/state"
         self._link, self._robot, self._modes, self._runs, self._explorer = link, robot, modes, runs, explorer
         self._refused, self._last_reached, self._battery_heard = refused, last_reached, battery_heard
         self._clock = clock
+        self._zones = zones  # the active map's zones (WaypointStore.zones)
         self._told = None  # (state without pose, pose) last published
         self._pose_told_at = -POSE_PERIOD
         self._wake = threading.Event()
@@ -120,6 +123,7 @@ class RobotState:
             "battery": status.get("battery"),
             "dock": dock,
             "refused": self._refused(),
+            "zones": {zone_object_id(z.name): z.enabled for z in self._zones()},
         }
 
     def _exploring(self):

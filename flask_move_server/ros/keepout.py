@@ -66,7 +66,8 @@ class KeepoutPublisher:
             return
         version, message = raw
         zones = tuple(self._store.zones())
-        held = self._guard.holding(self._pose())
+        # the pose only matters with a zone on: a map without any costs the loop a file stat
+        held = self._guard.holding(self._pose()) if any(z.enabled for z in zones) else frozenset()
         if held != self.held:
             self._tell_held(held)
         key = (version, zones, held)

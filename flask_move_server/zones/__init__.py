@@ -14,6 +14,7 @@ does not cross itself and covers at least ``MIN_AREA``, a wall at least ``MIN_LE
 :func:`distance` (0 inside) is what goals are judged by. Pure: no rospy, no numpy.
 """
 
+import hashlib
 import math
 from dataclasses import dataclass
 from typing import Tuple
@@ -58,6 +59,12 @@ class Zone:
         pad = WALL_THICKNESS / 2 if self.kind == "wall" else 0.0
         xs, ys = [p[0] for p in self.points], [p[1] for p in self.points]
         return min(xs) - pad, min(ys) - pad, max(xs) + pad, max(ys) + pad
+
+
+def zone_object_id(name):
+    """The zone's id in MQTT topics and Home Assistant: ``zone_`` and 10 hex digits of its name's hash (a name in
+    any language is not a topic level; the same name always gives the same id)."""
+    return "zone_" + hashlib.sha1(name.encode("utf-8")).hexdigest()[:10]
 
 
 def check_zone_name(name):
