@@ -107,3 +107,35 @@ def test_without_a_battery_reading_the_robot_never_goes_home_by_itself():
     for _ in range(3):
         low.look()
     assert docking.docked == []
+
+
+HOME_FIRST = "  battery_start: 0.21\ndock:\n  return_below: 0.24\n  resume_above: 0.27\n  critical_below: 0.1\n"
+
+
+@pytest.fixture(scope="module")
+def going_home(tmp_path_factory):
+    server = SimServer(tmp_path_factory.mktemp("home_first"), sim_config=HOME_FIRST)
+    yield server
+    stop_process(server.proc)
+
+
+def test_a_round_started_while_it_goes_home_to_charge_waits_for_the_charge_then_runs(going_home):
+    """Found walking the demo as an owner: a round started at 18 % drove off while the robot docked, and the
+    docking, its lane left, failed three times. Now the run begins paused, and goes on once charged."""
+    sim = going_home
+    wait_for(lambda: sim.status()["dock"]["state"] in ("going", "approaching", "docked", "charging"), timeout=30,
+             message="the robot going home by itself below return_below")
+    with EventReader(sim.url, kinds=["run"], timeout=240) as runs:
+        r = sim.post("/runs", {"waypoints": ["kitchen"]})
+        assert r.status_code == 202, r.text
+        run = r.json()["run"]
+        assert run["state"] == "paused", run
+        assert run["message"].startswith("Battery 2") and run["message"].endswith(
+            "the robot goes home to charge first; the run starts by itself at 27 %."), run
+        dock = wait_for(lambda: sim.status()["dock"] if sim.status()["dock"]["state"] in ("charging", "failed")
+                        else None, timeout=120, message="docked on the charger")
+        assert dock["state"] == "charging", dock
+        went_on = runs.until(lambda kind, r: r["id"] == run["id"] and r["state"] == "running", timeout=120)[1]
+        assert went_on["message"].startswith("Charged to 27 % at dock: the run went on by itself."), went_on
+        done = runs.until(lambda kind, r: r["state"] not in ("running", "paused"), timeout=120)[1]
+    assert done["state"] == "succeeded" and [v["name"] for v in done["visited"]] == ["kitchen"], done

@@ -131,6 +131,7 @@ class ServerParts:
         from flask_move_server.dock.low_battery import LowBattery
 
         low = LowBattery(robot, robot.docking, runs, self.config.dock, tell=happenings.low_battery)
+        runs.holds_new_runs = low  # a run started while it goes home to charge begins paused
         stack.callback(low.start().close)
 
     def _room_ahead(self, robot):

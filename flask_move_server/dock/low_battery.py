@@ -5,7 +5,8 @@
 canceled ("Battery 18 %: gone home to charge; the run goes on by itself at 80 %."), a single goal
 or an exploration ends saying why, and the ``low_battery`` happening is told (a webhook). Once
 the robot, on its charger, is back at ``dock.resume_above`` (80 %), the run it paused goes on by
-itself (its message says so, its closing summary too). Below ``dock.critical_below`` (10 %) goals
+itself (its message says so, its closing summary too); a run started meanwhile begins paused and
+goes on by itself then too (the run executor asks :meth:`LowBattery.why`). Below ``dock.critical_below`` (10 %) goals
 other than home are refused (``Docking.before_goal``).
 
 It leaves alone a robot driven by its owner's joystick (it goes home once they let go), one the
@@ -27,6 +28,7 @@ DOCKING = ("going", "approaching", "undocking")
 PAUSED_FOR_IT = "Battery {:.0f} %: gone home to charge; the run goes on by itself at {:.0f} %."
 GOING = "Battery {:.0f} %:"
 RESUMED = "Charged to {:.0f} % at {}: the run went on by itself."
+STARTS_CHARGED = "Battery {:.0f} %: the robot goes home to charge first; the run starts by itself at {:.0f} %."
 
 
 class LowBattery:
@@ -67,6 +69,21 @@ class LowBattery:
             self._go_home(level)
         elif self._paused is not None and state in ON_THE_DOCK and level >= self.config.resume_above:
             self._resume(level)
+
+    # a run started while the robot goes home to charge (the run executor's holds_new_runs) ---------
+
+    def why(self):
+        """Why a run started now begins paused (the robot goes home, or charges, below return_below), or None."""
+        level = self._level()
+        if level is None or level >= self.config.return_below:
+            return None
+        if self._docking.status()["state"] not in ON_THE_DOCK + ("going", "approaching"):
+            return None  # not going home (a docking that failed, the joystick): the run starts as asked
+        return STARTS_CHARGED.format(level * 100, self.config.resume_above * 100)
+
+    def held(self, run_id):
+        """The run ``why`` held: it goes on by itself at resume_above, as a run paused for the charge."""
+        self._paused = run_id
 
     def _level(self):
         battery = self._robot.battery_status()

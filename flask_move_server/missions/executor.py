@@ -60,6 +60,7 @@ class RunExecutor(RunWorker):
         self._command = None  # "pause", "skip", "cancel" for the worker to act on
         self._pause_why = None  # said before the pause's message (the battery ran low)
         self._seq = None  # the goal the active run sent last
+        self.holds_new_runs = None  # dock/low_battery.py: .why() a new run starts paused (gone home to charge)
         self._worker = None
         self._closed = False
         if modes is not None:
@@ -79,12 +80,13 @@ class RunExecutor(RunWorker):
         """
         self._check_waypoints([w for i, w in enumerate(route.waypoints) if poses is None or poses[i] is None])
         mode = self._mode_status()  # before our locks: the mode manager calls us under its own
+        held = self.holds_new_runs.why() if self.holds_new_runs is not None and not paused else None
         with self._sending, self._lock:
             self._refuse_start(mode)
             run = Run.of_route(self._history.next_id, route, trigger)
             run.poses, run.open_end, run.watch = (list(poses) if poses is not None else None), open_end, watch
-            if paused:
-                run.state, run.message = PAUSED, "Paused before {}: resume goes there.".format(run.target)
+            if paused or held:
+                run.state, run.message = PAUSED, held or "Paused before {}: resume goes there.".format(run.target)
             ticket = self._history.add(run)
             self._begin(run)
             started = run.as_dict()
@@ -92,6 +94,8 @@ class RunExecutor(RunWorker):
         # is one a crash right after cannot lose (a starved writer thread lost one under load).
         if not self._history.saved(ticket):
             log.warning("run %d: not on disk %g s after it started; answered anyway", run.id, SAVE_WAIT)
+        if held:
+            self.holds_new_runs.held(run.id)  # it goes on by itself once charged
         return started
 
     def extend(self, run_id, stops, poses, open_end):
