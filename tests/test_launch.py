@@ -153,7 +153,8 @@ LAYER = {"static": {"name": "static_layer", "type": "costmap_2d::StaticLayer"},
          "keepout": {"name": "keepout_layer", "type": "costmap_2d::StaticLayer"},
          "obstacle": {"name": "obstacle_layer", "type": "costmap_2d::ObstacleLayer"},
          "inflation": {"name": "inflation_layer", "type": "costmap_2d::InflationLayer"}}
-# What mapping's move_base has that navigation's has not: config/move_base_mapping.yaml, for a growing map.
+# Where mapping's move_base and navigation's differ: config/move_base_mapping.yaml, for a growing map, and
+# config/costmap_zones.yaml, navigation's only.
 GROWING_MAP = {
     "/move_base/NavfnROS/allow_unknown": (False, True),
     "/move_base/global_costmap/static_layer/subscribe_to_updates": (False, True),
@@ -164,6 +165,11 @@ GROWING_MAP = {
     "/move_base/local_costmap/plugins": ([LAYER["keepout"], LAYER["obstacle"], LAYER["inflation"]],
                                          [LAYER["obstacle"], LAYER["inflation"]]),
 }
+KEEPOUT = {"enabled": True, "map_topic": "keepout_map", "first_map_only": False, "subscribe_to_updates": False,
+           "use_maximum": True, "trinary_costmap": True, "lethal_cost_threshold": 100, "unknown_cost_value": -1}
+for _costmap, _unknown in (("global_costmap", True), ("local_costmap", False)):
+    for _key, _value in dict(KEEPOUT, track_unknown_space=_unknown).items():
+        GROWING_MAP["/move_base/{}/keepout_layer/{}".format(_costmap, _key)] = (_value, None)
 
 
 def node_params(params, node):
@@ -173,7 +179,7 @@ def node_params(params, node):
 @pytest.mark.parametrize("args", [[], ["server:=false", "lidar:=false"], ["slam:=hector"]],
                          ids=lambda a: " ".join(a) or "-")
 def test_mapping_s_move_base_is_navigation_s_with_the_growing_map_overrides(args):
-    """Both include launch/include/move_base.launch: they differ by move_base_mapping.yaml's keys only."""
+    """Both include launch/include/move_base.launch: they differ by move_base_mapping.yaml's keys and the zones' layer only."""
     navigation = node_params(dump_params("navigation.launch"), "/move_base")
     mapping = node_params(dump_params("mapping.launch", args), "/move_base")
     differ = {k: (navigation.get(k), mapping.get(k)) for k in set(navigation) | set(mapping)

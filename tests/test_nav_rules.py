@@ -747,10 +747,10 @@ def test_the_simulation_obeys_the_zones_only_where_the_real_costmaps_would(tmp_p
     assert costmap_rules.obeys_zones(SHIPPED, TOPIC) == (True, [])
     folder = tmp_path / "config"
     shutil.copytree(SHIPPED, str(folder))
-    text = (folder / "global_costmap.yaml").read_text()
+    text = (folder / "costmap_zones.yaml").read_text()
     keepout = '    - {name: keepout_layer, type: "costmap_2d::StaticLayer"}\n'
     inflation = '    - {name: inflation_layer, type: "costmap_2d::InflationLayer"}\n'
-    (folder / "global_costmap.yaml").write_text(text.replace(keepout, "").replace(inflation, inflation + keepout))
+    (folder / "costmap_zones.yaml").write_text(text.replace(keepout, "", 1).replace(inflation, inflation + keepout, 1))
     obeys, why = costmap_rules.obeys_zones(str(folder), TOPIC)
     assert not obeys and "after the inflation layer" in why[0]
     assert costmap_rules.obeys_zones(SHIPPED, TOPIC, mapping=True)[0] is False

@@ -2,7 +2,7 @@
 
 A latched ``nav_msgs/OccupancyGrid`` with the map's own header and ``MapMetaData``, copied byte
 for byte from the map message (``MapSource.raw``), so a costmap's second ``StaticLayer``
-(``keepout_layer``, config/global_costmap.yaml) never resizes the costmap to a grid that differs
+(``keepout_layer``, config/costmap_zones.yaml) never resizes the costmap to a grid that differs
 from the map by a float's last bit (static_layer.cpp ``incomingMap`` resizes a non-rolling costmap
 to any map whose size, resolution or origin differ); cells LETHAL (100) in zones, FREE (0)
 elsewhere (``zones/mask.py``). The message is serialized here once per change, not by genpy
@@ -11,8 +11,8 @@ elsewhere (``zones/mask.py``). The message is serialized here once per change, n
 A ``StaticLayer`` waits in move_base's start-up until its topic has a message, so a mask, all
 free when there are no zones, is published as soon as a map is: without it the real move_base
 never starts. Published in navigation only (or when the modes are off: the stack is not ours):
-mapping's costmaps have no keepout layer (config/move_base_mapping.yaml), as gmapping's map grows
-under them. When the map goes (a mode switch), the topic goes with it, so the next stack's
+mapping's costmaps have no keepout layer (move_base.launch loads config/costmap_zones.yaml in
+navigation only), as gmapping's map grows under them. When the map goes (a mode switch), the topic goes with it, so the next stack's
 move_base does not read the last map's mask. ``PERIOD``: how often the map's version, the zones'
 version and the robot's pose are looked at; a change is published within it.
 """

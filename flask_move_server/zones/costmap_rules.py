@@ -1,7 +1,7 @@
 """Whether move_base's costmaps, configured as given, read the zones' mask: costmap_2d's rules.
 
-The real costmaps read ``keepout_map`` through a ``costmap_2d::StaticLayer`` (config/global_costmap.yaml,
-config/local_costmap.yaml). :func:`keepout_problems` applies what that layer does (Noetic's
+The real costmaps read ``keepout_map`` through a ``costmap_2d::StaticLayer`` (config/costmap_zones.yaml,
+loaded over config/global_costmap.yaml and config/local_costmap.yaml in navigation). :func:`keepout_problems` applies what that layer does (Noetic's
 ``costmap_2d/plugins/static_layer.cpp``, ``src/costmap_layer.cpp``, ``src/layered_costmap.cpp``) to a
 costmap's parameters and says why it would not keep the robot out of the zones, or nothing:
 
@@ -30,7 +30,8 @@ inflation_layer.cpp 219-231; costmap_2d_ros.cpp 269-275.)
 
 :func:`move_base_costmaps` merges the YAML files of a navigation config folder as
 ``launch/include/move_base.launch`` loads them (costmap_common.yaml into both costmaps, then
-global_costmap.yaml, local_costmap.yaml, and move_base_mapping.yaml over them while mapping), so
+global_costmap.yaml, local_costmap.yaml, then costmap_zones.yaml in navigation or move_base_mapping.yaml
+while mapping), so
 the simulated move_base obeys the zones exactly when the real one would. Pure: PyYAML only.
 """
 
@@ -49,7 +50,7 @@ def move_base_costmaps(folder, mapping=False):
     """``{"global_costmap": params, "local_costmap": params}`` as roslaunch gives them to move_base."""
     common = _read(folder, "costmap_common.yaml")
     tree = {name: copy.deepcopy(common) for name in COSTMAPS}
-    files = ["global_costmap.yaml", "local_costmap.yaml"] + (["move_base_mapping.yaml"] if mapping else [])
+    files = ["global_costmap.yaml", "local_costmap.yaml", "move_base_mapping.yaml" if mapping else "costmap_zones.yaml"]
     for name in files:
         _merge(tree, {k: v for k, v in _read(folder, name).items() if k in COSTMAPS})
     return tree
