@@ -179,7 +179,8 @@ def node_params(params, node):
 @pytest.mark.parametrize("args", [[], ["server:=false", "lidar:=false"], ["slam:=hector"]],
                          ids=lambda a: " ".join(a) or "-")
 def test_mapping_s_move_base_is_navigation_s_with_the_growing_map_overrides(args):
-    """Both include launch/include/move_base.launch: they differ by move_base_mapping.yaml's keys and the zones' layer only."""
+    """Both include launch/include/move_base.launch: they differ by move_base_mapping.yaml's keys and the zones'
+    layer only."""
     navigation = node_params(dump_params("navigation.launch"), "/move_base")
     mapping = node_params(dump_params("mapping.launch", args), "/move_base")
     differ = {k: (navigation.get(k), mapping.get(k)) for k in set(navigation) | set(mapping)

@@ -12,9 +12,9 @@ A ``StaticLayer`` waits in move_base's start-up until its topic has a message, s
 free when there are no zones, is published as soon as a map is: without it the real move_base
 never starts. Published in navigation only (or when the modes are off: the stack is not ours):
 mapping's costmaps have no keepout layer (move_base.launch loads config/costmap_zones.yaml in
-navigation only), as gmapping's map grows under them. When the map goes (a mode switch), the topic goes with it, so the next stack's
-move_base does not read the last map's mask. ``PERIOD``: how often the map's version, the zones'
-version and the robot's pose are looked at; a change is published within it.
+navigation only), as gmapping's map grows under them. When the map goes (a mode switch), the
+topic goes with it, so the next stack's move_base does not read the last map's mask. ``PERIOD``:
+how often the map's version, the zones' version and the robot's pose are looked at; a change is published within it.
 """
 
 import logging

@@ -1,7 +1,8 @@
 """Whether move_base's costmaps, configured as given, read the zones' mask: costmap_2d's rules.
 
 The real costmaps read ``keepout_map`` through a ``costmap_2d::StaticLayer`` (config/costmap_zones.yaml,
-loaded over config/global_costmap.yaml and config/local_costmap.yaml in navigation). :func:`keepout_problems` applies what that layer does (Noetic's
+loaded over config/global_costmap.yaml and config/local_costmap.yaml in navigation).
+:func:`keepout_problems` applies what that layer does (Noetic's
 ``costmap_2d/plugins/static_layer.cpp``, ``src/costmap_layer.cpp``, ``src/layered_costmap.cpp``) to a
 costmap's parameters and says why it would not keep the robot out of the zones, or nothing:
 
