@@ -15,7 +15,7 @@ from tests.fake_robot import FakeRobot
 STATIC = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "flask_move_server", "web",
                       "static")
 FILES = sorted(os.path.relpath(os.path.join(d, f), STATIC) for d, _, names in os.walk(STATIC) for f in names)
-BUDGET = 150 * 1024  # issue 13: everything but the map image
+BUDGET = 160 * 1024  # issue 13: everything but the map image; issue 36 (zones) took it past 150 KiB (gzip: issue 37)
 
 
 @pytest.fixture

@@ -229,3 +229,12 @@ def test_a_goal_into_a_zone_is_refused_naming_it(guarded, store):
     guarded.zones.check(Pose2D(1.8, 1.5, 0.0))  # 20 cm off: free
     store.switch_zone("Katzenecke", False)
     guarded.zones.check(Pose2D(2.5, 1.5, 0.0))
+
+
+def test_marking_a_place_inside_a_zone_keeps_it_and_warns(client, guarded):
+    assert client.put("/zones/Katzenecke", json={"kind": "keepout", "polygon": SQUARE}).status_code == 201
+    r = client.put("/waypoints/Napf", json={"x": 2.5, "y": 1.5, "yaw": 0.0})
+    assert r.status_code == 201 and "Katzenecke" in r.get_json()["warning"]
+    assert client.get("/waypoints/Napf").status_code == 200
+    r = client.put("/waypoints/Flur", json={"x": 0.5, "y": 0.5, "yaw": 0.0})
+    assert r.status_code == 201 and "warning" not in r.get_json()

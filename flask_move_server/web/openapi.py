@@ -143,7 +143,9 @@ def _waypoint_item():
                        "yaw": _coordinate(YAW_LIMIT), "dock": dock}, ["x", "y", "yaw"])
     from_robot = _object({"from": {"enum": ["current"]}, "dock": dock}, ["from"])
     role_only = _object({"dock": dock}, ["dock"])
-    saved = _ok({"created": {"type": "boolean"}, "waypoint": _ref("Waypoint")})
+    saved = _ok({"created": {"type": "boolean"}, "waypoint": _ref("Waypoint"),
+                 "warning": {"type": "string", "description": "the place lies in an enabled zone: kept, but goals "
+                                                             "there are refused (docs/zones.md)"}})
     item = {
         "get": _operation("One waypoint", None, {200: _json(_ref("Waypoint"))}, errors=(400, 404)),
         "put": _operation("Create or replace a waypoint (saved before the answer)",

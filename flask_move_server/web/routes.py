@@ -7,7 +7,7 @@ store, and shape the JSON answer. They know nothing of rospy.
 from flask import Blueprint, current_app, jsonify
 from werkzeug.routing import PathConverter
 
-from flask_move_server.core.errors import BadRequest
+from flask_move_server.core.errors import BadRequest, InZone
 from flask_move_server.core.geometry import Goal, Pose2D
 from flask_move_server.waypoints import YAW_LIMIT, check_coordinate, check_name, make_waypoint
 from flask_move_server.web.body import json_object, number, text
@@ -117,8 +117,21 @@ def put_waypoint(name):
         waypoint = make_waypoint(name, number(data, "x"), number(data, "y"), number(data, "yaw"))
     store = _store()
     created = store.put(waypoint, dock=dock)
-    return jsonify({"status": "ok", "created": created,
-                    "waypoint": _shown_waypoint(waypoint, store.dock())}), 201 if created else 200
+    body = {"status": "ok", "created": created, "waypoint": _shown_waypoint(waypoint, store.dock())}
+    warning = _zone_warning(waypoint)
+    if warning:
+        body["warning"] = warning
+    return jsonify(body), 201 if created else 200
+
+
+def _zone_warning(waypoint):
+    """Why the robot cannot go to ``waypoint`` while a zone keeps it out (it is kept all the same), or None."""
+    zones = getattr(_robot(), "zones", None)
+    try:
+        zones.check(Pose2D(waypoint.x, waypoint.y, waypoint.yaw), waypoint.name) if zones is not None else None
+    except InZone as exc:
+        return str(exc)
+    return None
 
 
 @api.route("/waypoints/<waypoint:name>", methods=["DELETE"])

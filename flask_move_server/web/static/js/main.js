@@ -9,6 +9,7 @@ import {clearError, initNotices, notify, report} from "./notice.js";
 import {StopSender} from "./stop.js";
 import {withoutApi} from "./words.js";
 import {initPlaces, loadWaypoints, markPlace} from "./places.js";
+import {initZones, loadZones} from "./zones.js";
 import {initOverlays} from "./overlays.js";
 import {initDriveSpeed} from "./drivespeed.js";
 import {initHome, showDock, dockWords} from "./home.js";
@@ -178,6 +179,7 @@ const HINTS = {
   mark: "Press a place, drag the way it should face, then name it.",
   look: "Drag to move the map; pinch or two fingers to zoom.",
   route: "Tap places in the order to visit them.",
+  zone: "Tap the corners on the map; drag to move the map.",
 };
 
 export function setGesture(mode) {
@@ -238,6 +240,7 @@ function resync() {
   }));
   askMode(() => api("GET", "/mode")).then(showModes, (e) => { if (e.status === 404) $("mode").textContent = "robot"; });
   quietly(loadWaypoints());
+  quietly(loadZones());
   quietly(loadMap());
   quietly(loadMaps());
   quietly(loadRoutes());
@@ -253,7 +256,8 @@ live.on("status", showStatus);
 live.on("estop", showEstop);
 live.on("battery", showBattery);
 live.on("plan", (p) => map.setPlan(p.poses));
-live.on("waypoints", () => { quietly(loadWaypoints()); quietly(loadRoutes()); });  // routes live in the waypoints file
+live.on("waypoints", () => { quietly(loadWaypoints()); quietly(loadRoutes()); quietly(loadZones()); });  // they live in the waypoints file
+live.on("zone", () => quietly(loadZones()));
 live.on("run", (run) => {
   tellRun(run);
   if (run.trigger === "schedule") quietly(loadRoutes());  // its route's next run has moved on
@@ -307,6 +311,7 @@ $("nav-text").onclick = () => flashHint($("nav-text").title || "");  // the goal
 $("token").onclick = () => askTokenAgain().then(() => resync());
 initPanels({call, report, setGesture, isLive});
 initPlaces({call, sendGoal, isLive, map, buzz});
+initZones({call, isLive, map, setGesture});
 initHealth();
 initNotices();
 initOverlays({live, map});

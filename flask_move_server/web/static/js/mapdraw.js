@@ -1,9 +1,10 @@
-// Drawing the map view: the map image (or a metre grid without one), the plan, the goal, the spot an
+// Drawing the map view: the map image (or a metre grid without one), the zones (zonedraw.js), the plan, the goal, the spot an
 // exploration heads for, the waypoints, a route (routedraw.js), the robot and the arrow being dragged
 // (setting the pose: with the laser as it would lie there, laserfit.js). Pure drawing: what to draw
 // is the view's state.
 import {movedTo, wallShare} from "./laserfit.js";
 import {drawRoute} from "./routedraw.js";
+import {drawZones} from "./zonedraw.js";
 
 export const TAP_PX = 10;  // a press that moves less than this is a tap, not a drag (no arrow drawn)
 
@@ -13,6 +14,7 @@ export function drawMap(v) {
   ctx.fillRect(0, 0, v.width, v.height);
   if (v.image && v.meta) drawImage(v, ctx);
   else drawGrid(v, ctx);
+  drawZones(v, ctx);
   drawTrail(v, ctx);
   drawPlan(v, ctx);
   drawScan(v, ctx);

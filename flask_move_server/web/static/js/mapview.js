@@ -40,7 +40,9 @@ export class MapView {
     this.draft = null;           // a route being made [{name, state}] in order, shown before a run's
     this.runStops = null;        // the run under way's stops [{name, state}]: its progress
     this.exploreTarget = null;   // [x, y]: where the exploration under way is heading
-    this.mode = "go";            // what a one-finger press does: go | pose | mark | look | route (tap places, pan)
+    this.zones = [];             // the map's zones as GET /zones gives them (zonedraw.js)
+    this.zoneDraft = null;       // a zone being drawn: {kind, points: [[x, y], ...]}
+    this.mode = "go";            // what a one-finger press does: go | pose | mark | look | route (tap places, pan) | zone
     this.pointers = new Map();
     this.gesture = null;
     this.onPress = () => {};     // (mode, x, y, yaw) from a drag or a tap on the map
@@ -48,6 +50,7 @@ export class MapView {
     this.onTap = () => {};       // (mode) a tap on no marker
     this.onWaypoints = () => {}; // (list) the waypoints shown changed
     this.onRouteStop = () => {}; // (name) a place tapped while making a route
+    this.onZonePoint = () => {}; // (x, y) a spot tapped while drawing a zone
     this.listen();
     new ResizeObserver(() => this.resize()).observe(canvas);
     this.resize();
@@ -255,7 +258,7 @@ export class MapView {
       this.view = {scale, ox: mid[0] - wx * scale, oy: mid[1] + wy * scale};
     } else if (g.kind === "press") {
       g.now = this.local(e);
-      if (this.mode === "look" || this.mode === "route") {
+      if (this.mode === "look" || this.mode === "route" || this.mode === "zone") {
         this.view.ox = g.view.ox + g.now[0] - g.start[0];
         this.view.oy = g.view.oy + g.now[1] - g.start[1];
         if (distance(g.start, g.now) > TAP_PX) { this.follow = false; this.userMoved = true; }
@@ -274,7 +277,7 @@ export class MapView {
     this.gesture = null;
     if (cancelled || this.mode === "look") return;
     if (distance(g.start, g.now) < TAP_PX) { this.tap(g.start); return; }
-    if (this.mode === "route") return;  // a drag while making a route pans
+    if (this.mode === "route" || this.mode === "zone") return;  // a drag while making a route or a zone pans
     const [x, y] = this.toWorld(g.start[0], g.start[1]);
     const yaw = Math.atan2(-(g.now[1] - g.start[1]), g.now[0] - g.start[0]);
     this.onPress(this.mode, x, y, yaw);
@@ -283,6 +286,7 @@ export class MapView {
   /** A tap picks a waypoint in Go mode (or adds it to a route being made); anywhere else it only
    *  says how to send the robot (a stray touch while looking at the map must not move a robot). */
   tap(point) {
+    if (this.mode === "zone") { this.onZonePoint(...this.toWorld(point[0], point[1])); return; }
     const hit = this.waypointAt(point);
     if (hit && this.mode === "go") { this.onWaypoint(hit.name); return; }
     if (hit && this.mode === "route") { this.onRouteStop(hit.name); return; }

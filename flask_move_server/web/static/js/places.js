@@ -88,7 +88,7 @@ async function deletePlace(name) {
 
 /** Saves a place under `name` (`where`: {x, y, yaw} or {from: "current"}) and says so. */
 function savePlace(name, where) {
-  return ctx.call("PUT", placePath(name), where).then(() => notify("Saved " + name));
+  return ctx.call("PUT", placePath(name), where).then((a) => notify(a && a.warning ? "Saved " + name + ", but it lies in a no-go zone" : "Saved " + name));
 }
 
 const SPOT_WORDS = {wall: "inside a wall", unknown: "not mapped yet"};
