@@ -13,7 +13,7 @@ import pytest
 pytest.importorskip("playwright", reason="playwright is not installed (pip install -e '.[test]'; Debian lacks it)")
 
 from tests.conftest import wait_for  # noqa: E402
-from tests.page_browser import PageSim, live, screenshot  # noqa: E402
+from tests.page_browser import PageSim, on_the_map, screenshot  # noqa: E402
 from tests.test_page import Screen, on_page  # noqa: E402
 
 CORNERS = [(1.5, 0.0), (2.5, 0.0), (2.5, 1.3), (1.5, 1.3)]  # across the way from the dock to the kitchen
@@ -29,9 +29,7 @@ def sim(tmp_path_factory):
 
 @pytest.fixture
 def page(sim, browser):
-    page = browser.open(sim.url + "/")
-    live(page)
-    page.wait_for_function("document.getElementById('map').dataset.imageRect")
+    page = on_the_map(browser, sim)
     yield page
     assert page.errors == []
     page.close()

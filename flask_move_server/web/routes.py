@@ -127,8 +127,10 @@ def put_waypoint(name):
 def _zone_warning(waypoint):
     """Why the robot cannot go to ``waypoint`` while a zone keeps it out (it is kept all the same), or None."""
     zones = getattr(_robot(), "zones", None)
+    if zones is None:
+        return None
     try:
-        zones.check(Pose2D(waypoint.x, waypoint.y, waypoint.yaw), waypoint.name) if zones is not None else None
+        zones.check(Pose2D(waypoint.x, waypoint.y, waypoint.yaw), waypoint.name)
     except InZone as exc:
         return str(exc)
     return None

@@ -88,7 +88,8 @@ async function deletePlace(name) {
 
 /** Saves a place under `name` (`where`: {x, y, yaw} or {from: "current"}) and says so. */
 function savePlace(name, where) {
-  return ctx.call("PUT", placePath(name), where).then((a) => notify(a && a.warning ? "Saved " + name + ", but it lies in a no-go zone" : "Saved " + name));
+  const said = (answer) => (answer && answer.warning ? ", but it lies in a no-go zone" : "");
+  return ctx.call("PUT", placePath(name), where).then((answer) => notify("Saved " + name + said(answer)));
 }
 
 const SPOT_WORDS = {wall: "inside a wall", unknown: "not mapped yet"};
