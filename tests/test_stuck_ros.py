@@ -86,6 +86,20 @@ def test_wedged_by_its_goal_it_says_so_backs_out_and_goes_on(stuck, move_base):
     assert move_base.goals[1][1].target_pose.pose.position.x == HOLD_X
 
 
+def test_wedged_at_an_angle_with_its_back_blocked_too_it_pulls_out_forwards_and_goes_on(stuck, move_base):
+    robot, world, recovery, _, told = stuck
+    world.blocked = lambda linear: linear < 0 or world.pushing > 0  # a table's corner beside its back
+    seq = robot.goto(Goal(Pose2D(HOLD_X, 0.0, 0.0), "kitchen"))
+    world.pushing = 0.2
+    wait_for(lambda: robot.status()["navigation"]["state"] == "stuck", timeout=10, message="the goal held, stuck")
+    world.pushing = 0.0
+    wait_for(lambda: len(move_base.goals) == 2, timeout=20, message="the same goal sent again")
+    assert world.backed_out(), "it tried backing out first"
+    assert world.truth.x - OPEN_FLOOR.x == pytest.approx(0.3, abs=0.08)  # then came 0.3 m forwards
+    assert recovery.status()["freed"] == 1 and robot.status()["navigation"]["goal_id"] == seq
+    assert told[-1] == "free"
+
+
 @pytest.mark.parametrize("stuck", [BACK_TO_THE_WALL], indirect=True)
 def test_with_a_wall_behind_it_does_not_back_out_and_the_goal_ends_stuck(stuck, move_base):
     robot, world, recovery, _, told = stuck

@@ -16,7 +16,7 @@ from flask_move_server.core.errors import MoveServerError, NotStuck
 from flask_move_server.recovery import footprint as footprints
 from flask_move_server.recovery import relocate, words
 from flask_move_server.recovery.back_out import DONE as BACKED_OUT
-from flask_move_server.recovery.back_out import NO_ROOM, PERIOD, BackOut, ended
+from flask_move_server.recovery.back_out import BLOCKED, NO_ROOM, PERIOD, BackOut, ended
 
 log = logging.getLogger("flask_move_server.recovery.recovery")  # one logger for the stuck robot's lines
 
@@ -77,8 +77,20 @@ class WayOut:
 
     def _back_out(self, seq, where):
         """Back out the way the robot came, as far as the laser shows room: the outcome (back_out.py), or None
-        when someone else took over (``seq``: the goal held for it, or None: the owner asked for it)."""
+        when someone else took over (``seq``: the goal held for it, or None: the owner asked for it).
+
+        Blocked that way too (wedged at an angle: a table's corner beside its back, which the laser shows
+        alongside the way back, not in it), it pulls out the other way, once, if the laser shows room there."""
         way = -(self.sensing.came() or 1)  # back the way it came: it drove forward into it, most likely
+        outcome = self._back_out_way(seq, where, way)
+        if outcome == BLOCKED and self._ours(seq):
+            log.info("%s: blocked backing out; trying the other way", "goal {}".format(seq) if seq else "asked")
+            other = self._back_out_way(seq, where, -way)
+            outcome = outcome if other == NO_ROOM else other
+        return outcome
+
+    def _back_out_way(self, seq, where, way):
+        """One back-out ``way`` (-1 backwards, +1 forwards): the outcome, or None (someone else took over)."""
         room = self._room(self.config.back_out_distance, way)
         if room is None or room < MIN_ROOM:
             return NO_ROOM if self._ours(seq) else None
