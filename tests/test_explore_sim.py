@@ -25,6 +25,7 @@ from tests.page_browser import PageSim
 
 RADIUS = 0.15  # sim.robot_radius's default: what the explorer and the move_base stand-in keep from walls
 EXPLORE_WAIT = 420  # s: the longest world at speed 4 takes under 2 minutes here
+TEST_WAIT = EXPLORE_WAIT + 60  # pytest's limit for one exploration: past EXPLORE_WAIT, so finished() says why
 DEMO = os.path.join(ROOT, "config", "maps", "demo.yaml")
 
 
@@ -39,10 +40,17 @@ def exploration(sim):
 
 
 def finished(sim, timeout=EXPLORE_WAIT):
-    """The exploration once it ended (done, failed or canceled)."""
-    wait_for(lambda: exploration(sim)["state"] in ("done", "failed", "canceled"), timeout=timeout,
-             message="the exploration to end", interval=1.0)
-    return exploration(sim)
+    """The exploration once it ended (done, failed, canceled or stuck); if it does not, what it was
+    doing and what the server logged of it."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        now = exploration(sim)
+        if now["state"] in ("done", "failed", "canceled", "stuck"):
+            return now
+        time.sleep(1.0)
+    told = [line.rstrip() for line in sim.lines if "explor" in line or "goal" in line][-40:]
+    raise AssertionError("the exploration did not end in {} s: {}\nstatus: {}\nlog:\n{}".format(
+        timeout, now, sim.status(), "\n".join(told)))
 
 
 def true_pose(sim):
@@ -147,7 +155,7 @@ def test_the_estop_ends_exploring_and_the_robot_stands(demo):
         assert demo.post("/estop/release").status_code == 200
 
 
-@pytest.mark.timeout(EXPLORE_WAIT)  # the whole flat: ~50 s alone, past pytest's 120 s beside a busy CI's other worker
+@pytest.mark.timeout(TEST_WAIT)  # the whole flat: ~50 s alone, past pytest's 120 s beside a busy CI's other worker
 def test_the_demo_flat_is_explored_and_a_taken_name_is_refused_before_the_robot_moves(demo):
     wait_for(lambda: not demo.status()["estop"]["latched"], timeout=10, message="the e-stop released")
     start = true_pose(demo)

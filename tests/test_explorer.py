@@ -75,6 +75,9 @@ class Store:
     def __init__(self, path):
         self.path = path
 
+    def zones(self):
+        return []
+
 
 class Maps:
     save_timeout = 1.0
@@ -278,6 +281,58 @@ def test_the_way_home_is_tried_twice_then_the_map_is_saved_where_it_stands(outco
     assert done["state"] == "done" and maps.saved == [("flat", True)]
     assert len(robot.goals) == 2
     assert ("could not get back" in done["message"]) is not back, done["message"]
+
+
+def test_a_way_home_that_gets_no_nearer_is_given_up_and_the_map_saved_where_it_stands():
+    robot, maps = Robot(), Maps(grid(CLOSED))  # every goal stays active: the robot stands
+    x = explorer(robot, maps, patience=0.3)
+    x.start("flat")
+    done = ended(x)
+    assert done["state"] == "done" and maps.saved == [("flat", True)]
+    assert set(robot.canceled) == {1, 2}, "each try home canceled once it got no nearer"
+    assert "could not get back" in done["message"] and "no nearer" in done["message"], done["message"]
+
+
+def test_a_pose_lost_while_exploring_ends_it_failed_saying_so():
+    robot, maps = Robot(), Maps(grid(ROOM))
+    calls = []
+
+    def pose():
+        calls.append(1)
+        if len(calls) > 3:
+            raise NoPose("no tf map -> base_link")
+        return Pose2D(1.8, 0.55, 0.0)
+    robot.current_pose = pose
+    x = explorer(robot, maps, patience=0.3)
+    x.start("flat")
+    done = ended(x)
+    assert done["state"] == "failed" and "was not known for" in done["message"], done
+    assert maps.saved == []
+
+
+class Flipping(Source):
+    """Each look shows one end of the room closed, the other end the next time: its frontiers take turns."""
+
+    def __init__(self):
+        super().__init__(grid(ROOM))
+        self.looks = 0
+        self.ends = [grid([r[:20].replace("?", "#") + r[20:] for r in ROOM]),
+                     grid([r[:20] + r[20:].replace("?", "#") for r in ROOM])]
+
+    def current(self):
+        self.looks += 1
+        return self.looks, self.ends[self.looks % 2]
+
+
+def test_two_frontiers_taking_turns_while_nothing_new_is_mapped_are_given_up_and_it_ends():
+    robot, maps = Robot(), Maps(grid(ROOM))
+    maps.source = Flipping()
+    x = explorer(robot, maps, patience=0.3)
+    x.start("flat")
+    wait_for(lambda: x.current()["state"] in ("returning", "done"), timeout=10,
+             message="exploring to end though each goal is replaced before it is reached")
+    assert len(robot.canceled) >= 1 and len(robot.goals) >= 3
+    x.cancel("test over", wait_for_send=False)
 
 
 # A room 5 m x 1 m known, open at both ends and through a gap in its top wall: three frontiers.

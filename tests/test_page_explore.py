@@ -330,6 +330,7 @@ def test_on_the_sim_explore_maps_the_flat_and_stop_ends_it_where_it_is(sim, sim_
     page.locator("#explore-close").tap()
 
 
+@pytest.mark.timeout(EXPLORE_WAIT + 60)  # ~80 s alone; past pytest's 120 s beside a busy worker (it failed so)
 def test_on_the_sim_explore_goes_on_to_the_saved_map_and_navigates_on_it(sim, sim_page):
     page = sim_page
     page.answers.append("flat")

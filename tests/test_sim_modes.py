@@ -136,6 +136,7 @@ def free_share(slam, truth):
     return mapped / free
 
 
+@pytest.mark.timeout(300)  # ~60 s alone, 113 s beside a busy worker: near pytest's 120 s
 def test_map_the_flat_from_nothing_save_it_and_navigate_on_it(parts, tmp_path):
     parts.stacks.start("mapping")
     plans = Recorder(parts.config.navigation.plan_topic, Path)

@@ -24,6 +24,8 @@ POLL = 0.5  # s between looks at the map and the goal (a goal's end wakes the wo
 NEARER = 0.1  # m the robot must come nearer its target within progress_timeout
 KEEP = 0.75  # m: a goal is kept while a frontier's target lies this near it
 HOME_TRIES = 2  # goals home before the map is saved where the robot stands
+GROWTH_M2 = 0.25  # m² the known map must grow by ...
+GROWTH_PATIENCE = 2  # ... within this many progress_timeouts, or the goal under way is given up
 
 
 class ExplorerWorker:
@@ -79,9 +81,12 @@ class ExplorerWorker:
         """Drive to frontiers until none is left or time is up; False when the exploration ended."""
         blacklist, goal = [], None
         empty, unmoved, trail = 0, 0, Trail(self._home)
+        lost, growth = None, Growth(self.progress_timeout * GROWTH_PATIENCE)
         while self._still(exp):
             if goal is not None:
                 ended, goal = goal, self._follow(goal, blacklist)
+                if goal is None:
+                    growth.stop()  # a goal ended by itself: no chain of replaced goals to judge
                 if ended.stuck:  # the robot said so itself, and could not get out: no frontier is to blame
                     return self._stuck(exp, 0, ended.stuck)
                 if goal is None:
@@ -91,8 +96,20 @@ class ExplorerWorker:
                             return self._stuck(exp, unmoved)
                         unmoved = 0  # it moved: those frontiers were out of reach
             survey = self._survey(exp, blacklist)
+            lost = None if survey is not None else lost or time.monotonic()
+            if lost is not None and time.monotonic() - lost > self.progress_timeout:
+                return self._fail(exp, "The robot's place on the map was not known for {:g} s: is mapping running? "
+                                  "(GET /health says what is missing.) The map made so far stays, unsaved.".format(
+                                      self.progress_timeout))
+            if goal is not None and survey is not None and growth.stalled(survey.known_m2):  # a chain replaced
+                log.info("explorer: nothing new mapped for %g s while going to (%.2f, %.2f): given up",
+                         growth.patience, *goal.target)
+                blacklist.append(goal.target)
+                self._robot.cancel_goal(goal.seq)
+                goal = None  # the frontiers it danced between are left; the next survey picks another
             if goal is not None and survey is not None and not _still_there(goal, survey):
                 goal = None  # its frontier was seen: the next goal replaces this one (no cancel, no blacklist)
+                growth.watch(survey.known_m2)
             if goal is None and survey is not None:
                 if not survey.frontiers:
                     empty += 1
@@ -221,14 +238,19 @@ class ExplorerWorker:
         return _Goal(seq, target, here)
 
     def _explored(self, exp, survey):
+        unreached = self._unreached(len(survey.unreachable))  # reads the zones: not under our lock
         with self._lock:
             if not self._still(exp):
                 return False
-            unreachable = len(survey.unreachable)
-            exp.message = "The whole reachable flat is mapped ({:.0f} m² known){}.".format(
-                survey.known_m2, "; {} place{} seen through gaps too narrow for the robot".format(
-                    unreachable, "s were" if unreachable != 1 else " was") if unreachable else "")
+            exp.message = "The whole reachable flat is mapped ({:.0f} m² known){}.".format(survey.known_m2, unreached)
         return True
+
+    def _unreached(self, unreachable):
+        """What is said of the frontiers no reachable cell serves."""
+        if not unreachable:
+            return ""
+        return "; {} place{} seen through gaps too narrow for the robot".format(
+            unreachable, "s were" if unreachable != 1 else " was")
 
     def _go_home(self, exp):
         """Back to the start (or the dock marked while mapping); False when the exploration ended."""
@@ -247,8 +269,8 @@ class ExplorerWorker:
             seq = self._send_home(exp, home, dock)
             if seq is None:
                 return False
-            state, why = self._home_goal_end(exp, seq)
-            if state != "aborted":
+            state, why = self._home_goal_end(exp, _Goal(seq, (home.x, home.y), self._robot.current_pose()))
+            if state not in ("aborted", "stalled"):
                 break
         if not self._still(exp):
             return False
@@ -274,11 +296,17 @@ class ExplorerWorker:
                 return None
         return seq
 
-    def _home_goal_end(self, exp, seq):
+    def _home_goal_end(self, exp, goal):
+        """How the goal home ended: move_base's (state, why), or ``stalled`` (canceled here) when it brought
+        the robot no nearer for ``progress_timeout`` s or took longer than ``return_timeout`` s."""
         deadline = time.monotonic() + self.return_timeout
         state, why = "active", None
-        while self._still(exp) and state in ("active", "canceling") and time.monotonic() < deadline:
-            state, why = self._robot.goal_end(seq, POLL)
+        while self._still(exp) and state in ("active", "canceling"):
+            if goal.stalled(self._robot, self.progress_timeout) or time.monotonic() > deadline:
+                log.info("explorer: no progress home for %g s", self.progress_timeout)
+                self._robot.cancel_goal(goal.seq)
+                return "stalled", "it came no nearer for {:g} s".format(self.progress_timeout)
+            state, why = self._robot.goal_end(goal.seq, POLL)
         return state, why
 
     def _home_pose(self):
@@ -330,6 +358,38 @@ class ExplorerWorker:
             if failed:
                 after = "but navigation on it did not start: {}".format(failed["message"])
             self._end(exp, DONE, "{} Saved as {}, {}.".format(note, exp.save_as, after))
+
+
+class Growth:
+    """Whether the map grows while goals replace each other: each frontier seen before it is reached,
+    the next sent, and so on. Where two frontiers take turns and nothing new is mapped, that would go
+    on for ever (each goal is new, so none is "no nearer" for long); ``stalled`` says when to give the
+    goal under way up. A goal that ends by itself ends the chain (:meth:`stop`)."""
+
+    def __init__(self, patience):
+        self.patience = patience
+        self._most = self._since = None  # None: no chain watched
+
+    def watch(self, known_m2):
+        """A goal was replaced: the chain's watch starts, unless one runs."""
+        if self._since is None:
+            self._most, self._since = known_m2, time.monotonic()
+
+    def stop(self):
+        self._most = self._since = None
+
+    def stalled(self, known_m2):
+        """True once the chain mapped less than GROWTH_M2 more for ``patience`` s (its watch then ends)."""
+        if self._since is None:
+            return False
+        now = time.monotonic()
+        if known_m2 >= self._most + GROWTH_M2:
+            self._most, self._since = known_m2, now
+            return False
+        if now - self._since > self.patience:
+            self.stop()
+            return True
+        return False
 
 
 class _Goal:
