@@ -15,8 +15,8 @@ import threading
 from flask_move_server.core.errors import MoveServerError, NotStuck
 from flask_move_server.recovery import footprint as footprints
 from flask_move_server.recovery import relocate, words
-from flask_move_server.recovery.back_out import DONE as BACKED_OUT
 from flask_move_server.recovery.back_out import BLOCKED, NO_ROOM, PERIOD, BackOut, ended
+from flask_move_server.recovery.back_out import DONE as BACKED_OUT
 
 log = logging.getLogger("flask_move_server.recovery.recovery")  # one logger for the stuck robot's lines
 
