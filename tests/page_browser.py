@@ -65,6 +65,12 @@ class PageSim(SimReads, ServerProcess):
     def post(self, path, body=None, timeout=10):
         return requests.post(self.url + path, json=body, headers=self.headers(), timeout=timeout)
 
+    def put(self, path, body=None, timeout=10):
+        return requests.put(self.url + path, json=body, headers=self.headers(), timeout=timeout)
+
+    def delete(self, path, timeout=10):
+        return requests.delete(self.url + path, headers=self.headers(), timeout=timeout)
+
     def close(self):
         stop_process(self.proc)
 

@@ -171,6 +171,51 @@ def test_the_demo_flat_is_explored_and_a_taken_name_is_refused_before_the_robot_
     assert demo.get("/mode").json()["mode"] == "navigation"
 
 
+BEDROOM = (3.55, 2.55, 10.0, 6.0)  # x0, y0, x1, y1 (sim/demo_map.py): its one door at x 5.0..5.9 on y 2.5
+BEDROOM_DOOR = [[4.8, 2.5], [6.1, 2.5]]
+
+
+@pytest.mark.timeout(TEST_WAIT)
+def test_a_wall_drawn_while_mapping_keeps_exploring_out_of_the_room_behind_it_and_is_saved_with_the_map(demo):
+    r = demo.post("/mode", {"mode": "mapping"}, timeout=30)
+    assert r.status_code in (200, 202), r.text
+    wait_for(lambda: demo.get("/mode").json()["state"] == "running", timeout=60, message="mapping")
+    r = demo.put("/zones/Schlafzimmertür", {"kind": "wall", "line": BEDROOM_DOOR})
+    assert r.status_code == 201, r.text
+    explore(demo, {"save_as": "walled"})
+    deepest, done = None, None
+    deadline = time.monotonic() + EXPLORE_WAIT
+    while done is None and time.monotonic() < deadline:  # where the robot went, looked at each half second
+        pose = true_pose(demo)
+        if BEDROOM[0] < pose["x"] < BEDROOM[2]:
+            deepest = max(deepest or pose["y"], pose["y"])
+        now = exploration(demo)
+        done = now if now["state"] in ("done", "failed", "canceled", "stuck") else None
+        time.sleep(0.5)
+    done = done or finished(demo, timeout=1)
+    assert done["state"] == "done", done
+    assert deepest is None or deepest < 2.5, "the robot drove through the wall, to y {:.2f}".format(deepest)
+    assert "beyond its zones" in done["message"], done["message"]
+    share = room_known(DEMO, str(demo.folder / "maps" / "walled.yaml"), BEDROOM)
+    assert share < 0.9, "{:.0%} of the bedroom was mapped through its walled-off door".format(share)  # 77 % seen
+    zones = demo.get("/zones").json()["zones"]  # now on the saved map
+    assert [(z["name"], z["kind"], z["enabled"]) for z in zones] == [("Schlafzimmertür", "wall", True)]
+
+
+def room_known(world_yaml, saved_yaml, room):
+    """The share of the world's free floor in ``room`` (x0, y0, x1, y1) that the saved map knows as free."""
+    truth, saved = mapfile.load(world_yaml), mapfile.load(saved_yaml)
+    cols, rows = np.meshgrid(np.arange(truth.width), np.arange(truth.height))
+    xs = truth.origin_x + (cols + 0.5) * truth.resolution
+    ys = truth.origin_y + (rows + 0.5) * truth.resolution
+    floor = (frontiers.as_array(truth) == 0) & (xs > room[0]) & (xs < room[2]) & (ys > room[1]) & (ys < room[3])
+    scols = np.floor((xs[floor] - saved.origin_x) / saved.resolution).astype(int)
+    srows = np.floor((ys[floor] - saved.origin_y) / saved.resolution).astype(int)
+    inside = (scols >= 0) & (scols < saved.width) & (srows >= 0) & (srows < saved.height)
+    known = frontiers.as_array(saved)[srows[inside], scols[inside]]
+    return np.count_nonzero((known >= 0) & (known < 50)) / float(np.count_nonzero(floor))
+
+
 def assert_stands(sim, seconds=1.0):
     """The robot comes to rest within a second and then does not move."""
     time.sleep(0.5)

@@ -16,6 +16,7 @@ import pytest
 from flask_move_server.explore import frontiers
 from flask_move_server.explore.frontiers import label, reachable_free
 from flask_move_server.maps import mapfile
+from flask_move_server.zones import make_zone
 
 RES, RADIUS = 0.1, 0.2
 CODES = {"#": 100, ".": 0, "R": 0, "?": -1, " ": -1}
@@ -112,6 +113,18 @@ def test_a_room_seen_through_a_gap_narrower_than_the_robot_is_unreachable():
     assert found.frontiers == ()
     assert len(found.unreachable) == 1
     assert found.unreachable[0].size == 14 and found.unreachable[0].cost == math.inf
+
+
+def test_a_virtual_wall_across_the_door_makes_the_room_behind_it_unreachable_unless_off_or_skipped():
+    grid, robot = doorway(5)
+    wall = make_zone("door", {"kind": "wall", "line": [[1.05, 0.2], [1.05, 1.1]]})
+    walled = frontiers.walled(grid, [wall])
+    assert walled.cells != grid.cells and (walled.width, walled.height) == (grid.width, grid.height)
+    found = survey(walled, robot)
+    assert found.frontiers == () and len(found.unreachable) == 1
+    for unwalled in (frontiers.walled(grid, [wall.switched(False)]), frontiers.walled(grid, [wall], skip=["door"])):
+        assert unwalled is grid
+        assert len(survey(unwalled, robot).frontiers) == 1
 
 
 WALL_SIDE_HOLE = """

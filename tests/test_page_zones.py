@@ -1,7 +1,8 @@
 """Zones on the phone page (Chromium at 390 × 844, touch) against a real ``--sim`` server.
 
 The owner draws a no-go area by tapping its corners on the map and a wall by tapping its ends,
-names each, switches one off and deletes it; the server's zones (``GET /zones``, what the
+names each, switches one off and deletes it, moves and deletes corners of a saved one, and is
+told when a place marked lies in a zone; the server's zones (``GET /zones``, what the
 costmaps are sent) follow, and the map draws them. Where a tap lands is computed from the
 server's own map metadata and the image rectangle the page drew (tests/test_page.py ``Screen``).
 """
@@ -13,7 +14,7 @@ import pytest
 pytest.importorskip("playwright", reason="playwright is not installed (pip install -e '.[test]'; Debian lacks it)")
 
 from tests.conftest import wait_for  # noqa: E402
-from tests.page_browser import PageSim, on_the_map, screenshot  # noqa: E402
+from tests.page_browser import Finger, PageSim, on_the_map, screenshot  # noqa: E402
 from tests.test_page import Screen, on_page  # noqa: E402
 
 CORNERS = [(1.5, 0.0), (2.5, 0.0), (2.5, 1.3), (1.5, 1.3)]  # across the way from the dock to the kitchen
@@ -92,3 +93,52 @@ def test_a_zone_drawn_wrong_says_why_and_nothing_is_saved(sim, page):
     page.locator("#zone-undo").tap()
     page.locator("#zone-cancel").tap()
     assert page.get_attribute("#map", "data-gesture") == "go"
+
+
+def _tap(page, screen, x, y):
+    page.touchscreen.tap(*on_page(page, screen.screen(x, y)))
+
+
+def test_edit_a_saved_zone_move_one_corner_delete_another_and_it_stays_off(sim, page):
+    square = [[1.5, 3.0], [2.5, 3.0], [2.5, 4.0], [1.5, 4.0]]  # in the office
+    assert sim.put("/zones/Teppich", {"kind": "keepout", "polygon": square, "enabled": False}).status_code == 201
+    page.locator("#tabs button[data-tab=places]").tap()
+    page.locator('#zones li[data-name="Teppich"] button', has_text="Edit").tap()
+    assert page.get_attribute("#map", "data-gesture") == "zone"
+    assert "Teppich" in page.inner_text("#zone-hint") and page.locator("#zone-corner").is_hidden()
+    screen = Screen(page, sim)
+    _tap(page, screen, 2.5, 4.0)  # picks corner 3
+    page.wait_for_function("document.getElementById('zone-hint').textContent.includes('corner 3 goes')")
+    _tap(page, screen, 2.8, 4.3)  # ... and puts it there
+    _tap(page, screen, 1.5, 4.0)  # picks corner 4
+    page.wait_for_function("!document.getElementById('zone-corner').hidden")
+    screenshot(page, "zones-editing")
+    page.locator("#zone-corner").tap()
+    page.wait_for_function("document.getElementById('zone-corner').hidden")
+    page.locator("#zone-save").tap()
+    page.wait_for_function("document.getElementById('zone-draw').hidden")
+    zone = sim.get("/zones/Teppich").json()
+    assert zone["enabled"] is False, "editing its corners switched it on"
+    assert len(zone["polygon"]) == 3
+    for (x, y), (zx, zy) in zip([(1.5, 3.0), (2.5, 3.0), (2.8, 4.3)], zone["polygon"]):
+        assert math.hypot(x - zx, y - zy) <= screen.tolerance, zone["polygon"]
+    assert not page.asked, "an edited zone keeps its name: nothing is asked"
+    assert sim.delete("/zones/Teppich").status_code == 204
+
+
+def test_a_place_marked_in_a_no_go_area_is_kept_and_the_page_says_so(sim, page):
+    r = sim.put("/zones/Napfecke", {"kind": "keepout", "polygon": [list(c) for c in CORNERS]})
+    assert r.status_code in (200, 201), r.text
+    page.locator("#tabs button[data-tab=places]").tap()
+    page.locator("#gesture button[data-gesture=mark]").tap()
+    screen = Screen(page, sim)
+    page.answers.append("Napf")
+    start = screen.screen(2.0, 0.6)
+    finger = Finger(page, on_page(page, start))
+    finger.move(on_page(page, (start[0] + 40, start[1])))
+    finger.lift()
+    page.wait_for_selector('#places li[data-name="Napf"]')
+    page.wait_for_function("document.getElementById('done').textContent.includes('lies in a no-go zone')")
+    assert sim.get("/waypoints/Napf").status_code == 200
+    assert sim.delete("/waypoints/Napf").status_code == 204
+    assert sim.delete("/zones/Napfecke").status_code == 204

@@ -117,6 +117,12 @@ def test_a_goal_inside_a_zone_is_refused_before_move_base_hears_of_it(sim):
     assert r.status_code == 201, r.text
     r = sim.post("/goto", {"name": "Napf"})
     assert r.status_code == 409 and r.json()["error"] == "in_zone" and "Napf" in r.json()["message"], r.text
+    runs = sim.get("/runs").json()["runs"]
+    r = sim.post("/runs", {"waypoints": ["sofa", "Napf"]})  # refused before its first stop, not at the second
+    assert r.status_code == 409 and r.json()["error"] == "in_zone" and "Napf" in r.json()["message"], r.text
+    assert sim.get("/runs").json()["runs"] == runs
+    assert sim.status()["navigation"].get("goal_id") == before.get("goal_id")
+    assert sim.delete("/waypoints/Napf").status_code == 204
 
 
 def _masks(sim, count):

@@ -17,6 +17,7 @@ from flask_move_server.explore.exploration import DONE, EXPLORING, FAILED, RETUR
 from flask_move_server.explore.stuck import STUCK_AFTER, Trail, moved, stuck_message
 from flask_move_server.waypoints import make_waypoint
 from flask_move_server.waypoints.yaml_format import DOCK
+from flask_move_server.zones import distance
 
 log = logging.getLogger(__name__)
 
@@ -130,7 +131,8 @@ class ExplorerWorker:
         return False
 
     def _survey(self, exp, blacklist):
-        """The frontiers on the latest map from where the robot stands (None: no pose or map now)."""
+        """The frontiers on the latest map from where the robot stands (None: no pose or map now), the
+        zones drawn while mapping as walls."""
         from flask_move_server.explore import frontiers  # numpy: loaded by the first exploration, not at rest
 
         try:
@@ -140,6 +142,9 @@ class ExplorerWorker:
             log.info("explorer: no map or pose now (%s)", exc)
             time.sleep(POLL)
             return None
+        zones = self._maps.store.zones()
+        around = [zone.name for zone in zones if distance(zone, pose.x, pose.y) < self.radius]
+        grid = frontiers.walled(grid, zones, skip=around)  # a zone the robot stands in: it may drive out
         survey = frontiers.survey(grid, (pose.x, pose.y), self.radius, blacklist=blacklist)
         with self._lock:
             exp.frontiers, exp.unreachable = len(survey.frontiers), len(survey.unreachable)
@@ -246,11 +251,13 @@ class ExplorerWorker:
         return True
 
     def _unreached(self, unreachable):
-        """What is said of the frontiers no reachable cell serves."""
+        """What is said of the frontiers no reachable cell serves: through narrow gaps, or beyond zones."""
         if not unreachable:
             return ""
-        return "; {} place{} seen through gaps too narrow for the robot".format(
-            unreachable, "s were" if unreachable != 1 else " was")
+        where = "through gaps too narrow for the robot"
+        if any(zone.enabled for zone in self._maps.store.zones()):
+            where += " or beyond its zones"
+        return "; {} place{} seen {}".format(unreachable, "s were" if unreachable != 1 else " was", where)
 
     def _go_home(self, exp):
         """Back to the start (or the dock marked while mapping); False when the exploration ended."""

@@ -21,11 +21,14 @@ row of it), and connected components are found by :func:`label` over runs of cel
 (1.17, which is what this module may use). Pure: no rospy, no Flask.
 """
 
+import dataclasses
 import math
 from dataclasses import dataclass
 from typing import Optional
 
 import numpy as np
+
+from flask_move_server.zones import mask
 
 OCCUPIED = 50  # a cell value from here up is an obstacle (the sim's and costmap_2d's middle)
 START_SEARCH = 0.5  # m: how far from the robot a cell it can stand on is looked for
@@ -96,6 +99,20 @@ def survey(grid, robot_xy, radius, blacklist=(), blacklist_radius=0.5, min_size=
     cell_area = grid.resolution ** 2
     return Survey(tuple(found), tuple(unreachable), blacklisted, window.known_cells * cell_area,
                   int(np.count_nonzero(reach)) * cell_area, None if start is None else window.point(*start))
+
+
+def walled(grid, zones, skip=()):
+    """``grid`` with the enabled ``zones`` (but those named in ``skip``) as walls: their cells occupied.
+
+    What the explorer surveys while mapping (docs/zones.md): no frontier beyond a virtual wall or
+    inside a no-go zone is reachable, so none is driven to. The grid itself when no zone is on."""
+    if not any(zone.enabled and zone.name not in skip for zone in zones):
+        return grid
+    lethal = np.frombuffer(mask.cells(zones, grid.width, grid.height, grid.resolution, grid.origin_x,
+                                      grid.origin_y, grid.origin_yaw, skip), dtype=np.uint8) == mask.LETHAL
+    cells = np.frombuffer(grid.cells, dtype=np.int8).copy()
+    cells[lethal] = mask.LETHAL
+    return dataclasses.replace(grid, cells=cells.tobytes())
 
 
 def reachable_free(grid, start_xy, radius):

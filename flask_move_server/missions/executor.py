@@ -25,6 +25,7 @@ from flask_move_server.core.errors import (
     UnknownRun,
     WrongMode,
 )
+from flask_move_server.core.geometry import Pose2D
 from flask_move_server.missions.history import SAVE_WAIT
 from flask_move_server.missions.run import (
     ACTIVE,
@@ -248,9 +249,13 @@ class RunExecutor(RunWorker):
     # the rules ---------------------------------------------------------------
 
     def _check_waypoints(self, names):
-        """Every waypoint of a route exists on the active map; BadRoute-like 404 naming the unknown."""
+        """Every waypoint of a route exists on the active map (UnknownWaypoint, 404, with close names) and
+        lies outside its enabled zones (InZone, 409, naming the stop and the zone), before the robot moves."""
+        zones = getattr(self._robot, "zones", None)
         for name in dict.fromkeys(names):
-            self._store.get(name)  # UnknownWaypoint with close names
+            waypoint = self._store.get(name)
+            if zones is not None:
+                zones.check(Pose2D(waypoint.x, waypoint.y, waypoint.yaw), waypoint.name)
 
     def _mode_status(self):
         """``GET /mode``'s body when this server runs the stack, else None (the stack is someone else's)."""

@@ -41,7 +41,7 @@ export class MapView {
     this.runStops = null;        // the run under way's stops [{name, state}]: its progress
     this.exploreTarget = null;   // [x, y]: where the exploration under way is heading
     this.zones = [];             // the map's zones as GET /zones gives them (zonedraw.js)
-    this.zoneDraft = null;       // a zone being drawn: {kind, points: [[x, y], ...]}
+    this.zoneDraft = null;       // a zone being drawn or edited: {kind, points: [[x, y], ...], name, picked, before}
     this.mode = "go";            // what a one-finger press does: go | pose | mark | look | route (tap places, pan) | zone
     this.pointers = new Map();
     this.gesture = null;

@@ -1,18 +1,28 @@
 // The map's zones (docs/zones.md): a no-go area a translucent red polygon, a wall a thick red line;
-// one switched off dashed and grey. A zone being drawn: its corners and edges in the draft colour.
+// one switched off dashed and grey. A zone being drawn or edited: its corners and edges in the draft
+// colour (the saved shape of one being edited is not drawn under it), the corner picked ringed.
 const ON = "rgba(198, 40, 40, 0.3)", EDGE = "#c62828", OFF = "#757575", DRAFT = "#1565c0";
 
 export function drawZones(v, ctx) {
-  for (const z of v.zones) shape(v, ctx, z.kind, z.polygon || z.line, z.enabled ? EDGE : OFF, z.enabled);
   const d = v.zoneDraft;
+  for (const z of v.zones) {
+    if (d && z.name === d.name) continue;
+    shape(v, ctx, z.kind, z.polygon || z.line, z.enabled ? EDGE : OFF, z.enabled);
+  }
   if (!d) return;
   shape(v, ctx, d.kind, d.points, DRAFT, false);
   ctx.fillStyle = DRAFT;
-  for (const [x, y] of d.points.map((p) => v.toScreen(p[0], p[1]))) {
+  ctx.strokeStyle = DRAFT;
+  ctx.lineWidth = 3;
+  d.points.map((p) => v.toScreen(p[0], p[1])).forEach(([x, y], i) => {
     ctx.beginPath();
     ctx.arc(x, y, 6, 0, 2 * Math.PI);
     ctx.fill();
-  }
+    if (i !== d.picked) return;
+    ctx.beginPath();
+    ctx.arc(x, y, 14, 0, 2 * Math.PI);
+    ctx.stroke();
+  });
 }
 
 function shape(v, ctx, kind, points, colour, filled) {

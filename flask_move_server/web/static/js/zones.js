@@ -1,5 +1,6 @@
 // The Places panel's no-go zones (docs/zones.md): draw a no-go area (tap its corners) or a wall (tap
-// its points) on the map, name it, switch it on or off, delete it. The map draws them (zonedraw.js).
+// its points) on the map, name it, switch it on or off, delete it; Edit a saved one: tap a corner to
+// pick it, tap where it goes, or delete it. The map draws them (zonedraw.js).
 import {rowButton} from "./buttons.js";
 import {api, $, quietly} from "./api.js";
 import {notify} from "./notice.js";
@@ -7,6 +8,7 @@ import {byName, typedName} from "./words.js";
 
 let ctx = null;  // {call, isLive, map, setGesture} from main.js
 const LEAST = {keepout: 3, wall: 2};
+const PICK = 24;  // px: a tap this near a corner of a zone being edited picks that corner (pinch to zoom)
 const path = (name) => "/zones/" + encodeURIComponent(name);
 
 export async function loadZones() {
@@ -25,7 +27,9 @@ function zoneRow(z) {
   const toggle = rowButton("Keep out", "quiet", () => change(z, {enabled: !z.enabled}), ctx.isLive);
   toggle.title = z.enabled ? "On: tap to let the robot in today" : "Off: tap to keep the robot out";
   toggle.setAttribute("aria-pressed", String(z.enabled));
-  li.append(label, toggle, rowButton("Delete", "quiet", () => remove(z), ctx.isLive));
+  const edit = rowButton("Edit", "quiet", () => begin(z.kind, z), ctx.isLive);
+  edit.title = "Move or delete its corners on the map";
+  li.append(label, toggle, edit, rowButton("Delete", "quiet", () => remove(z), ctx.isLive));
   return li;
 }
 
@@ -41,8 +45,9 @@ async function remove(z) {
   quietly(loadZones());
 }
 
-function begin(kind) {
-  ctx.map.zoneDraft = {kind, points: []};
+function begin(kind, saved) {
+  const points = saved ? (saved.polygon || saved.line).map((p) => p.slice()) : [];
+  ctx.map.zoneDraft = {kind, points, name: saved ? saved.name : null, picked: null, before: []};
   $("zone-draw").hidden = false;
   $("zone-start").hidden = true;
   ctx.setGesture("zone");
@@ -53,10 +58,59 @@ function begin(kind) {
 function showDraft() {
   const d = ctx.map.zoneDraft;
   const left = LEAST[d.kind] - d.points.length;
-  $("zone-hint").textContent = left > 0 ? "Tap " + (d.kind === "wall" ? "the wall's ends" : "the corners") +
-    " on the map (" + left + " more)" : "Tap more, or Save";
+  const corners = d.kind === "wall" ? "the wall's points" : "the corners";
+  let hint = left > 0 ? "Tap " + (d.kind === "wall" && !d.name ? "the wall's ends" : corners) + " on the map (" +
+    left + " more)" : d.name ? "Tap a corner to move it, or tap to add one; then Save" : "Tap more, or Save";
+  if (d.picked !== null) hint = "Tap where corner " + (d.picked + 1) + " goes, or Delete corner";
+  $("zone-hint").textContent = (d.name ? d.name + ": " : "") + hint;
   $("zone-save").disabled = left > 0;
-  $("zone-undo").disabled = !d.points.length;
+  $("zone-undo").disabled = !d.before.length && d.picked === null;
+  $("zone-corner").hidden = d.picked === null;
+  $("zone-corner").disabled = d.points.length <= LEAST[d.kind];
+}
+
+function tapped(x, y) {
+  const d = ctx.map.zoneDraft;
+  if (!d) return;
+  const near = d.name && d.picked === null ? nearestCorner(d.points, x, y) : null;  // picking: in Edit only
+  if (near !== null) {
+    d.picked = near;
+  } else {
+    remember(d);
+    if (d.picked === null) d.points.push([x, y]); else d.points[d.picked] = [x, y];
+    d.picked = null;
+  }
+  showDraft();
+}
+
+function nearestCorner(points, x, y) {
+  const [tx, ty] = ctx.map.toScreen(x, y);
+  let best = null, bestGap = PICK;
+  points.forEach((p, i) => {
+    const [px, py] = ctx.map.toScreen(p[0], p[1]);
+    const gap = Math.hypot(px - tx, py - ty);
+    if (gap <= bestGap) { best = i; bestGap = gap; }
+  });
+  return best;
+}
+
+/** Keeps the corners as they are, for Undo. */
+function remember(d) {
+  d.before.push(d.points.map((p) => p.slice()));
+}
+
+function deleteCorner() {
+  const d = ctx.map.zoneDraft;
+  remember(d);
+  d.points.splice(d.picked, 1);
+  d.picked = null;
+  showDraft();
+}
+
+function undo() {
+  const d = ctx.map.zoneDraft;
+  if (d.picked !== null) d.picked = null; else if (d.before.length) d.points = d.before.pop();
+  showDraft();
 }
 
 function end() {
@@ -68,11 +122,13 @@ function end() {
 
 async function save() {
   const d = ctx.map.zoneDraft;
-  const name = typedName(window.prompt("Name this " + (d.kind === "wall" ? "wall:" : "no-go area:")));
+  const name = d.name || typedName(window.prompt("Name this " + (d.kind === "wall" ? "wall:" : "no-go area:")));
   if (!name) return;
-  if (ctx.map.zones.some((z) => z.name === name) && !window.confirm("Replace the zone " + name + "?")) return;
+  if (!d.name && ctx.map.zones.some((z) => z.name === name) && !window.confirm("Replace the zone " + name + "?")) return;
   const points = d.points.map(([x, y]) => [Math.round(x * 100) / 100, Math.round(y * 100) / 100]);
   const body = {kind: d.kind, [d.kind === "wall" ? "line" : "polygon"]: points};
+  const saved = ctx.map.zones.find((z) => z.name === name);
+  if (d.name && saved) body.enabled = saved.enabled;  // edited: its corners change, not whether it keeps out
   await quietly(ctx.call("PUT", path(name), body, "zone").then(() => { notify("Saved " + name); end(); }));
   quietly(loadZones());
 }
@@ -80,10 +136,11 @@ async function save() {
 /** Wires the panel; `context`: {call, isLive, map, setGesture}. */
 export function initZones(context) {
   ctx = context;
-  ctx.map.onZonePoint = (x, y) => { if (ctx.map.zoneDraft) { ctx.map.zoneDraft.points.push([x, y]); showDraft(); } };
+  ctx.map.onZonePoint = tapped;
   $("zone-keepout").onclick = () => begin("keepout");
   $("zone-wall").onclick = () => begin("wall");
-  $("zone-undo").onclick = () => { ctx.map.zoneDraft.points.pop(); showDraft(); };
+  $("zone-undo").onclick = undo;
+  $("zone-corner").onclick = deleteCorner;
   $("zone-cancel").onclick = end;
   $("zone-save").onclick = () => quietly(save());
 }
