@@ -2,6 +2,7 @@
 
 import math
 import os
+import random
 
 import pytest
 import yaml
@@ -141,6 +142,23 @@ def test_the_body_stops_at_a_wall_and_turns_freely(demo):
     assert body.bumped and 3.7 < body.pose.x <= 3.95 - 0.15
     body.step(-0.5, 0.5, 0.5)  # a turn in place is never blocked
     assert body.pose.yaw == pytest.approx(2.5, abs=1e-6) and not body.bumped
+
+
+def test_the_body_touches_what_lies_within_its_radius_exactly_and_nothing_more(demo):
+    _, costmap, _ = demo
+    grid, res = costmap.grid, costmap.resolution
+    blocked = grid.blocked()
+    squares = [(grid.origin_x + (i % grid.width) * res, grid.origin_y + (i // grid.width) * res)
+               for i, b in enumerate(blocked) if b]
+    rng = random.Random(7)
+    for _ in range(300):
+        x, y = rng.uniform(-2.2, 10.2), rng.uniform(-2.2, 6.2)
+        gap = min(math.hypot(max(sx - x, 0.0, x - sx - res), max(sy - y, 0.0, y - sy - res)) for sx, sy in squares)
+        if abs(gap - costmap.radius) > 1e-6:
+            assert costmap.touches(x, y) == (gap < costmap.radius), (x, y, gap)
+    # beside the bedroom door's jamb (its corner at 5.0, 2.45): the quantized cells let the body in here,
+    # 0.128 m from the corner, where no straight move either way was free (the explorer ended stuck so)
+    assert costmap.touches(5.103, 2.369) and not costmap.lethal_at(5.103, 2.369)
 
 
 def test_the_body_follows_the_exact_arc(demo):

@@ -4,7 +4,8 @@ A round skid-steer robot: its ground speeds ``left`` and ``right`` (m/s) give
 ``v = (left + right) / 2`` and ``w = (right - left) / track``, integrated
 along the exact arc. Long steps are cut into pieces shorter than half a cell,
 so the robot cannot tunnel through a thin wall; a piece that would put the
-body into an obstacle is not taken (the robot turns but does not move, as a
+body (a disk of the sim's ``robot_radius``, exactly: ``Costmap.touches``) into
+an obstacle is not taken (the robot turns but does not move, as a
 bumper-stopped base would). Pure: no rospy.
 """
 
@@ -40,7 +41,7 @@ class RobotBody:
             bumped = False
             for _ in range(pieces):
                 moved = along_arc(pose, v * h, w * h)
-                if self.costmap.lethal_at(moved.x, moved.y):
+                if self.costmap.touches(moved.x, moved.y):
                     bumped = True
                     moved = Pose2D(pose.x, pose.y, moved.yaw)
                 pose = moved

@@ -78,6 +78,36 @@ class Costmap:
         index = self.index(x, y)
         return index is None or self.cost[index] == LETHAL
 
+    def touches(self, x, y):
+        """True when a disk of ``radius`` centred at (x, y) overlaps an obstacle cell's square (or the map's edge).
+
+        The body's own test (``body.py``), exact where :meth:`lethal_at` is quantized to cell centres:
+        with that, a robot that came to rest beside a corner by an arc could stand in a free cell whose
+        every neighbour along its heading is lethal, and neither back out nor pull out straight (the
+        explorer ended ``stuck`` so beside the dining table and a door jamb). Exact, the distance to an
+        obstacle is continuous, so a move that keeps the robot as far from it is never refused."""
+        index = self.index(x, y)
+        if index is None or self.obstacles[index]:
+            return True
+        res, width, obstacles = self.resolution, self.width, self.obstacles
+        left, bottom = self.grid.origin_x - res, self.grid.origin_y - res  # padded cell (0, 0)'s corner
+        row0, col0 = divmod(index, width)
+        reach = int(math.ceil(self.radius / res)) + 1
+        r2 = self.radius * self.radius
+        for row in range(max(0, row0 - reach), min(self.height, row0 + reach + 1)):
+            low = bottom + row * res
+            dy = max(low - y, 0.0, y - low - res)
+            if dy * dy >= r2:
+                continue
+            base = row * width
+            for col in range(max(0, col0 - reach), min(width, col0 + reach + 1)):
+                if obstacles[base + col]:
+                    near = left + col * res
+                    dx = max(near - x, 0.0, x - near - res)
+                    if dx * dx + dy * dy < r2:
+                        return True
+        return False
+
 
 def _disk_offsets(reach, r2, width):
     """(index offset, dcol, drow, squared distance) of every cell within sqrt(r2) cells, nearest first."""
