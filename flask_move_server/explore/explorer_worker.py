@@ -276,7 +276,7 @@ class ExplorerWorker:
             seq = self._send_home(exp, home, dock)
             if seq is None:
                 return False
-            state, why = self._home_goal_end(exp, _Goal(seq, (home.x, home.y), self._robot.current_pose()))
+            state, why = self._home_goal_end(exp, _Goal(seq, (home.x, home.y), self._pose_or(home)))
             if state not in ("aborted", "stalled"):
                 break
         if not self._still(exp):
@@ -302,6 +302,13 @@ class ExplorerWorker:
                 self._robot.cancel_goal(seq)
                 return None
         return seq
+
+    def _pose_or(self, fallback):
+        """Where the robot stands, or ``fallback`` when that is not known now."""
+        try:
+            return self._robot.current_pose()
+        except MoveServerError:
+            return fallback
 
     def _home_goal_end(self, exp, goal):
         """How the goal home ended: move_base's (state, why), or ``stalled`` (canceled here) when it brought
