@@ -8,6 +8,7 @@ under ``make test``, Debian's 1.6 under ``make test-debian``.
 """
 
 import json
+import time
 
 import pytest
 import requests
@@ -26,7 +27,7 @@ ENTITIES = {  # (component, object) -> name, as Home Assistant shows them
     ("button", "resume"): "Resume", ("button", "estop"): "E-stop",
     ("sensor", "status"): "Status", ("sensor", "target"): "Target", ("sensor", "mode"): "Mode",
     ("sensor", "map"): "Map", ("sensor", "last_reached"): "Last reached",
-    ("binary_sensor", "estop"): "E-stop",
+    ("binary_sensor", "estop"): "E-stop latched",  # not "E-stop" twice: the button is that
 }
 
 
@@ -221,6 +222,57 @@ def test_a_goal_from_home_assistant_ends_a_run_and_the_run_says_who_sent_it(sim,
     assert ended["message"] == "A goal to sofa (MQTT goto/set) took the robot elsewhere."
     wait_for(lambda: sim.navigation()["target"] == "sofa", message="the goal that ended it under way")
     home.send(ROOT_TOPIC + "/stop/press", "PRESS")
+
+
+def test_a_trip_of_about_a_second_is_told_moving_then_arrived(sim, home):
+    # docs/home-assistant.md's "Robot arrived" automation triggers on Status turning arrived: a short
+    # trip must show moving, then arrived (built once a second, the state could miss it)
+    wait_for(lambda: sim.navigation()["state"] not in ("active", "canceling"), message="the last test's Stop")
+    assert sim.put("/waypoints/Sofaecke", {"x": 0.0, "y": 1.0, "yaw": 3.14}).status_code in (200, 201)
+    r = sim.post("/goto", {"name": "sofa", "wait": 90}, timeout=100)
+    assert r.status_code == 200, r.text
+    home.wait_json(STATE, lambda s: s["status"] == "arrived" and s["last_reached"] == "sofa")
+    home.clear()
+    home.send(ROOT_TOPIC + "/goto/set", "Sofaecke")  # half a metre: about a second at the sim's speed
+    wait_for(lambda: [s["status"] for s in _states(home)][-1:] == ["arrived"] and "moving" in
+             [s["status"] for s in _states(home)], timeout=15, message="moving, then arrived, on the state topic")
+    said = [s["status"] for s in _states(home)]
+    assert said.index("moving") < len(said) - 1 and said[-1] == "arrived", said
+    assert sim.delete("/waypoints/Sofaecke").status_code == 204
+
+
+def _states(home):
+    return [json.loads(text) for _t, text, _r in home.on(STATE) if text]
+
+
+def test_the_status_mode_and_dock_sensors_are_enums_of_every_word_they_say(sim, broker):
+    def retained(obj):
+        return json.loads(retained_on(broker, "{}/sensor/robot/{}/config".format(PREFIX, obj)))
+    status, dock = retained("status"), retained("dock")
+    assert status["device_class"] == "enum" == dock["device_class"]
+    assert {"moving", "arrived", "failed", "stuck", "estop"} <= set(status["options"])
+    assert retained("mode")["options"] == ["idle", "mapping", "navigation"] and "charging" in dock["options"]
+    state = json.loads(retained_on(broker, STATE))
+    assert state["status"] in status["options"] and state["dock"] in dock["options"]
+
+
+def test_a_restart_before_the_battery_is_heard_keeps_its_sensor_an_owner_may_have_renamed(broker, home, tmp_path):
+    topic = PREFIX + "/sensor/rover/battery/config"
+    first = MqttSim(tmp_path / "one", broker, name="rover")
+    try:
+        config = home.wait_json(topic, message="the battery's sensor once the sim's battery is heard")
+    finally:
+        stop_process(first.proc)
+    home.clear()
+    again = MqttSim(tmp_path / "two", broker, name="rover")  # discovery comes at connect, the battery after
+    try:
+        home.wait_json(PREFIX + "/sensor/rover/status/config", message="the discovery of the second start")
+        time.sleep(2.0)
+        assert all(text for _t, text, _r in home.on(topic)), "the battery's config was emptied at the start"
+        kept = json.loads(retained_on(broker, topic))
+        assert kept["unique_id"] == config["unique_id"] and kept["device_class"] == "battery"
+    finally:
+        stop_process(again.proc)
 
 
 def test_home_assistant_s_restart_brings_the_discovery_back(sim, home):

@@ -72,8 +72,37 @@ def test_the_templates_give_what_home_assistant_should_show():
     assert json.loads(render(attributes, dict(STATE, refused=refused)))["refused"] == refused
 
 
-def test_without_a_battery_reading_there_is_no_battery_sensor():
-    assert configs(battery_known=False)["homeassistant/sensor/robo/battery/config"] is None
+def test_without_a_battery_reading_its_sensor_is_neither_made_nor_removed():
+    # a robot without a fuel gauge gets none; one whose reading is yet to come keeps the config of its
+    # last start (an empty one would delete the entity the owner renamed, and make it anew a second later)
+    assert "homeassistant/sensor/robo/battery/config" not in configs(battery_known=False)
+    assert configs(battery_known=False, enabled=False)["homeassistant/sensor/robo/battery/config"] is None
+
+
+def test_the_status_mode_and_dock_sensors_offer_every_word_the_state_can_hold():
+    from flask_move_server.dock.docking import STATES as DOCK_STATES
+    from flask_move_server.modes.targets import MODES
+
+    found = configs()
+    status = found["homeassistant/sensor/robo/status/config"]
+    said = {_status(nav, teleop, estop, run, exploring, dock)
+            for nav in [{}] + [{"state": s} for s in ("active", "succeeded", "aborted", "canceled", "stuck", "lost")]
+            for teleop in ({}, {"active": True}) for estop in (False, True)
+            for run in (None, {"state": "paused"}, {"state": "stuck"}) for exploring in (False, True)
+            for dock in (None, "going", "docked", "charging", "failed")} | {"stuck"}
+    assert status["device_class"] == "enum" and said <= set(status["options"]), said - set(status["options"])
+    assert found["homeassistant/sensor/robo/mode/config"]["options"] == list(MODES)
+    assert set(found["homeassistant/sensor/robo/dock/config"]["options"]) == set(DOCK_STATES)
+    assert render(found["homeassistant/sensor/robo/mode/config"]["value_template"], dict(STATE, mode=None)) == "None"
+
+
+@pytest.mark.parametrize("names", [["kitchen", "Küche"], ['say "hi"', "{{ 7 }}", "a %} b", "厨房", "it's"]])
+def test_go_to_shows_the_target_only_while_it_is_one_of_the_places(names):
+    template = configs(waypoints=names)["homeassistant/select/robo/goto/config"]["value_template"]
+    for name in names:
+        assert render(template, dict(STATE, target=name)) == name
+    assert render(template, dict(STATE, target="deleted meanwhile")) == "None"
+    assert render(template, dict(STATE, target=None)) == "None"
 
 
 def test_discovery_off_removes_every_entity():

@@ -27,6 +27,7 @@ log = logging.getLogger(__name__)
 
 UNDOCKED, GOING, APPROACHING, DOCKED, CHARGING, UNDOCKING, FAILED = (
     "undocked", "going", "approaching", "docked", "charging", "undocking", "failed")
+STATES = (UNDOCKED, GOING, APPROACHING, DOCKED, CHARGING, UNDOCKING, FAILED)
 ON_THE_DOCK = (DOCKED, CHARGING)
 UNDER_WAY = (GOING, APPROACHING, UNDOCKING)
 PERIOD = 0.1  # s between two velocity commands of the approach

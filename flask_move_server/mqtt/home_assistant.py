@@ -2,8 +2,10 @@
 
 Retained configs under ``<prefix>/<component>/<robot>/<object>/config`` (docs/home-assistant.md):
 selects Go to (the active map's waypoints) and Route, buttons Stop, Dock, Pause, Resume, E-stop,
-sensors Status (its attributes: the sentence, the last refused command, the run), Target, Mode,
-Map, Last reached, Battery (once the robot has heard one), the binary sensor E-stop, and a switch
+sensors Status (an enum; its attributes: the sentence, the last refused command, the run), Target,
+Mode and Dock (enums), Map, Last reached, Battery (once the robot has heard one; its config is never
+removed at a start before a reading comes, so the entity an owner renamed stays), the binary sensor
+E-stop latched, and a switch
 per zone of the active map ("Katzenecke: keep out"; a deleted zone's switch is removed). Every
 entity reads ``<root>/state`` and is available while ``<root>/availability`` says ``online``.
 
@@ -19,6 +21,8 @@ import logging
 import threading
 
 from flask_move_server import __version__
+from flask_move_server.dock.docking import STATES as DOCK_STATES
+from flask_move_server.modes.targets import MODES
 from flask_move_server.zones import zone_object_id
 
 log = logging.getLogger(__name__)
@@ -29,14 +33,16 @@ NONE = "None"  # what Home Assistant's MQTT select and sensor read as "no value"
 WAKING_KINDS = ("waypoints", "map", "mode", "zone")
 SWITCH = "/switch/"  # the zones' switches: one per zone, removed with it
 
+STATUSES = ("idle", "moving", "arrived", "failed", "stopped", "teleop", "paused", "exploring", "stuck", "estop",
+            "docking", "docked", "charging")  # robot_state._status's words, and stuck
 BUTTONS = (("stop", "Stop", "mdi:stop"), ("dock", "Dock", "mdi:home-import-outline"),
            ("pause", "Pause", "mdi:pause"), ("resume", "Resume", "mdi:play"),
            ("estop", "E-stop", "mdi:alert-octagon"))
-SENSORS = (("target", "Target", "mdi:map-marker-path", "value_json.target"),
-           ("mode", "Mode", "mdi:robot", "value_json.mode"),
-           ("map", "Map", "mdi:map", "value_json.map"),
-           ("last_reached", "Last reached", "mdi:map-marker-check", "value_json.last_reached"),
-           ("dock", "Dock", "mdi:ev-station", "value_json.dock"))
+SENSORS = (("target", "Target", "mdi:map-marker-path", "value_json.target", None),
+           ("mode", "Mode", "mdi:robot", "value_json.mode", MODES),
+           ("map", "Map", "mdi:map", "value_json.map", None),
+           ("last_reached", "Last reached", "mdi:map-marker-check", "value_json.last_reached", None),
+           ("dock", "Dock", "mdi:ev-station", "value_json.dock", DOCK_STATES))
 
 
 def discovery(prefix, root, robot, device, waypoints, routes, battery_known, enabled=True, vda_connection=None,
@@ -59,34 +65,44 @@ def discovery(prefix, root, robot, device, waypoints, routes, battery_known, ena
     configs = [
         ("select", "goto", {"name": "Go to", "icon": "mdi:map-marker", "command_topic": root + "/goto/set",
                             "options": list(waypoints), "state_topic": state,
-                            "value_template": _or_none("value_json.target")}),
+                            "value_template": _one_of("value_json.target", waypoints)}),
         ("select", "route", {"name": "Route", "icon": "mdi:map-marker-multiple", "command_topic": root + "/route/set",
                              "options": list(routes), "state_topic": state,
                              "value_template": _or_none("value_json.run.route if value_json.run else none")}),
         ("sensor", "status", {"name": "Status", "icon": "mdi:robot-outline", "state_topic": state,
+                              "device_class": "enum", "options": list(STATUSES),
                               "value_template": "{{ value_json.status }}", "json_attributes_topic": state,
                               "json_attributes_template": "{{ {'message': value_json.message, 'refused': "
                                                           "value_json.refused, 'run': value_json.run} | tojson }}"}),
-        ("binary_sensor", "estop", {"name": "E-stop", "device_class": "safety", "state_topic": state,
+        ("binary_sensor", "estop", {"name": "E-stop latched", "device_class": "safety", "state_topic": state,
                                     "value_template": "{{ 'ON' if value_json.estop else 'OFF' }}"}),
     ]
     configs += [("button", obj, {"name": name, "icon": icon, "command_topic": "{}/{}/press".format(root, obj),
                                  "payload_press": "PRESS"}) for obj, name, icon in BUTTONS]
-    configs += [("sensor", obj, {"name": name, "icon": icon, "state_topic": state, "value_template": _or_none(value)})
-                for obj, name, icon, value in SENSORS]
-    configs.append(("sensor", "battery", {"name": "Battery", "device_class": "battery", "unit_of_measurement": "%",
-                                          "state_class": "measurement", "state_topic": state,
-                                          "value_template": _or_none("value_json.battery.percentage "
-                                                                     "if value_json.battery else none")}))
+    configs += [("sensor", obj, _sensor(name, icon, state, value, options))
+                for obj, name, icon, value, options in SENSORS]
+    if battery_known or not enabled:  # not heard yet: its config of an earlier start is left, never removed
+        configs.append(("sensor", "battery", {
+            "name": "Battery", "device_class": "battery", "unit_of_measurement": "%", "state_class": "measurement",
+            "state_topic": state, "value_template": _or_none("value_json.battery.percentage if value_json.battery "
+                                                             "else none")}))
     configs += [("switch", zone_object_id(zone.name), _zone_switch(root, state, zone)) for zone in zones]
     out = []
     for component, obj, config in configs:
         topic = "{}/{}/{}/{}/config".format(prefix, component, robot, obj)
-        keep = enabled and (obj != "battery" or battery_known)
+        keep = enabled
         unique_id = "{}_{}_{}_{}".format(MANUFACTURER, robot, component, obj)
         payload = json.dumps(dict(common, unique_id=unique_id, **config), ensure_ascii=False, sort_keys=True)
         out.append((topic, payload if keep else ""))
     return out
+
+
+def _sensor(name, icon, state, value, options):
+    """A sensor of the state topic; with ``options``, an enum (Home Assistant offers its states in automations)."""
+    config = {"name": name, "icon": icon, "state_topic": state, "value_template": _or_none(value)}
+    if options:
+        config.update(device_class="enum", options=list(options))
+    return config
 
 
 def _zone_switch(root, state, zone):
@@ -95,6 +111,13 @@ def _zone_switch(root, state, zone):
             "command_topic": "{}/zone/{}/set".format(root, object_id), "payload_on": "ON", "payload_off": "OFF",
             "state_topic": state, "value_template": "{{{{ 'ON' if (value_json.zones or {{}}).get('{}') else 'OFF' }}}}"
             .format(object_id)}
+
+
+def _one_of(expression, options):
+    """A template that gives ``expression`` when it is one of ``options``, else None: a select shown a
+    value it does not offer (a place deleted while the robot drives there) logs an error each time."""
+    return "{{% set v = {} %}}{{{{ v if v in {} else '{}' }}}}".format(
+        expression, json.dumps(list(options), ensure_ascii=False), NONE)
 
 
 def _or_none(expression):

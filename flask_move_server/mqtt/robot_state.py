@@ -2,11 +2,12 @@
 
 ``{"status", "message", "mode", "map", "target", "last_reached", "run", "estop", "pose",
 "battery", "dock", "refused", "zones"}`` (docs/home-assistant.md; ``zones``: each zone's switch id, on
-or off). One thread builds it once a second and at once
-when something is told on the event bus (a mode, a map, waypoints, a run, an exploration, the
-e-stop, a goal's end) and publishes it when it differs from the last one told. The pose alone
-changing is told at most once a second (``POSE_PERIOD``), and never more than ``MIN_PERIOD``
-apart anything else: a busy robot costs the broker a few messages a second at most. The battery
+or off). One thread builds it once a second and at once when something is told on the event bus
+(a mode, a map, waypoints, a run, an exploration, the e-stop, the robot's status: a goal sent or
+ended), and publishes it when it differs from the last one told: a change reaches Home Assistant
+within ``MIN_PERIOD``, and a goal shorter than a second is seen (built once a second, it was not).
+The pose alone changing is told at most once a second (``POSE_PERIOD``), and never more than
+``MIN_PERIOD`` apart anything else: a busy robot costs the broker a few messages a second at most. The battery
 is news as for the ``battery`` event (``reporter.battery_news``: a point of charge, charging, a
 reading grown old), never its ``age`` ticking, or a robot at rest would publish every second.
 Pure: no paho (the link publishes), no rospy (the robot facade reads).
@@ -24,8 +25,8 @@ log = logging.getLogger(__name__)
 
 PERIOD = 1.0  # s between looks when nothing is told
 POSE_PERIOD = 1.0  # s: a moving robot's pose, at most this often
-MIN_PERIOD = 0.2  # s between two states, whatever changed
-WAKING_KINDS = ("mode", "map", "waypoints", "run", "explore", "estop", "stuck", "dock", "zone")
+MIN_PERIOD = 0.1  # s between two states, whatever changed
+WAKING_KINDS = ("mode", "map", "waypoints", "run", "explore", "estop", "stuck", "dock", "zone", "status")
 DOCKING = ("going", "approaching", "undocking")  # dock/docking.py's states under way: "docking"
 ON_THE_DOCK = ("docked", "charging")
 RUNNING_EXPLORATION = ("starting", "exploring", "returning", "saving")
