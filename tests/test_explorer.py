@@ -17,6 +17,7 @@ from flask_move_server.core.errors import EStopLatched, ExploreConflict, MapExis
 from flask_move_server.core.geometry import Pose2D
 from flask_move_server.explore.explorer import Explorer
 from flask_move_server.maps.mapfile import Grid
+from flask_move_server.zones import make_zone
 from tests.conftest import wait_for
 
 RES = 0.1
@@ -72,11 +73,11 @@ class Source:
 
 
 class Store:
-    def __init__(self, path):
-        self.path = path
+    def __init__(self, path, zones=()):
+        self.path, self._zones = path, list(zones)
 
     def zones(self):
-        return []
+        return self._zones
 
 
 class Maps:
@@ -308,6 +309,18 @@ def test_a_pose_lost_while_exploring_ends_it_failed_saying_so():
     done = ended(x)
     assert done["state"] == "failed" and "was not known for" in done["message"], done
     assert maps.saved == []
+
+
+def test_a_wall_drawn_while_mapping_is_never_driven_through_even_by_a_robot_beside_it():
+    robot, maps = Robot(), Maps(grid(ROOM))
+    robot.current_pose = lambda: Pose2D(2.6, 0.55, 0.0)  # 0.1 m from the wall: the open end beyond it is nearer
+    maps.store = maps.marks = Store("mapping.waypoints.yaml",
+                                    [make_zone("Tür", {"kind": "wall", "line": [[2.7, -0.1], [2.7, 1.3]]})])
+    x = explorer(robot, maps)
+    x.start("flat")
+    wait_for(lambda: robot.goals, message="a first goal")
+    assert robot.goals[0].pose.x < 2.7, "a goal beyond the wall: {}".format(robot.goals[0].pose)
+    x.cancel("test over", wait_for_send=False)
 
 
 class Flipping(Source):

@@ -7,6 +7,7 @@ while its frontier is there, blacklisted when aborted, stalled or reached), go h
 state under the explorer's lock, as the explorer's own methods do. Pure: no rospy, no Flask.
 """
 
+import dataclasses
 import logging
 import math
 import time
@@ -17,7 +18,7 @@ from flask_move_server.explore.exploration import DONE, EXPLORING, FAILED, RETUR
 from flask_move_server.explore.stuck import STUCK_AFTER, Trail, moved, stuck_message
 from flask_move_server.waypoints import make_waypoint
 from flask_move_server.waypoints.yaml_format import DOCK
-from flask_move_server.zones import distance
+from flask_move_server.zones import blocking, distance
 
 log = logging.getLogger(__name__)
 
@@ -143,9 +144,10 @@ class ExplorerWorker:
             time.sleep(POLL)
             return None
         zones = self._maps.store.zones()
-        around = [zone.name for zone in zones if distance(zone, pose.x, pose.y) < self.radius]
-        grid = frontiers.walled(grid, zones, skip=around)  # a zone the robot stands in: it may drive out
-        survey = frontiers.survey(grid, (pose.x, pose.y), self.radius, blacklist=blacklist)
+        inside = [z.name for z in zones if z.kind == "keepout" and distance(z, pose.x, pose.y) == 0]
+        grid = frontiers.walled(grid, zones, skip=inside)  # a no-go area the robot is in: it may drive out
+        survey = _outside(frontiers.survey(grid, (pose.x, pose.y), self.radius, blacklist=blacklist), zones,
+                          self.radius)
         with self._lock:
             exp.frontiers, exp.unreachable = len(survey.frontiers), len(survey.unreachable)
             exp.known_m2 = survey.known_m2
@@ -429,6 +431,17 @@ class _Goal:
         if distance < self._best - NEARER:
             self._best, self._since = distance, now
         return now - self._since > patience
+
+
+def _outside(survey, zones, radius):
+    """``survey`` without the frontiers whose target lies in or beside an enabled zone (one the robot is
+    in is left out of the walls, so it can drive out: a goal into it would be refused, ``in_zone``)."""
+    kept, dropped = [], []
+    for frontier in survey.frontiers:
+        (dropped if blocking(zones, frontier.target[0], frontier.target[1], radius) else kept).append(frontier)
+    if not dropped:
+        return survey
+    return dataclasses.replace(survey, frontiers=tuple(kept), unreachable=survey.unreachable + tuple(dropped))
 
 
 def _still_there(goal, survey):
