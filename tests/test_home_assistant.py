@@ -28,6 +28,7 @@ ENTITIES = {  # (component, object) -> name, as Home Assistant shows them
     ("sensor", "status"): "Status", ("sensor", "target"): "Target", ("sensor", "mode"): "Mode",
     ("sensor", "map"): "Map", ("sensor", "last_reached"): "Last reached",
     ("binary_sensor", "estop"): "E-stop latched",  # not "E-stop" twice: the button is that
+    ("event", "arrival"): "Arrival", ("event", "run_ended"): "Run ended",
 }
 
 
@@ -211,6 +212,9 @@ def test_a_route_from_home_assistant_is_a_run(sim, home):
     home.wait_json(STATE, lambda s: s["status"] == "paused")
     home.send(ROOT_TOPIC + "/stop/press", "PRESS")
     wait_for(lambda: sim.get("/runs").json()["runs"][0]["state"] == "canceled", message="the run ended by Stop")
+    ended = home.wait_json(ROOT_TOPIC + "/event/run", message="the Run ended event")
+    assert (ended["event_type"], ended["id"], ended["route"]) == ("canceled", run["id"], "rounds"), ended
+    assert config_of(home, "event", "run_ended")["event_types"] == ["succeeded", "failed", "canceled", "skipped"]
 
 
 def test_a_goal_from_home_assistant_ends_a_run_and_the_run_says_who_sent_it(sim, home):
@@ -238,6 +242,12 @@ def test_a_trip_of_about_a_second_is_told_moving_then_arrived(sim, home):
              [s["status"] for s in _states(home)], timeout=15, message="moving, then arrived, on the state topic")
     said = [s["status"] for s in _states(home)]
     assert said.index("moving") < len(said) - 1 and said[-1] == "arrived", said
+    # there already: a trip too short for the state to show, yet a second Arrival event at that place
+    home.send(ROOT_TOPIC + "/goto/set", "Sofaecke")
+    arrivals = lambda: [json.loads(t) for _t, t, _r in home.on(ROOT_TOPIC + "/event/arrival")]  # noqa: E731
+    wait_for(lambda: len(arrivals()) >= 2, timeout=15, message="two Arrival events")
+    assert [(a["event_type"], a["place"]) for a in arrivals()] == [("arrived", "Sofaecke")] * 2
+    assert all(not retained for _t, _text, retained in home.on(ROOT_TOPIC + "/event/arrival"))
     assert sim.delete("/waypoints/Sofaecke").status_code == 204
 
 

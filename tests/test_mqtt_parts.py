@@ -36,7 +36,7 @@ STATE = {"status": "moving", "message": None, "mode": "navigation", "map": "flat
 
 def test_every_config_topic_is_under_the_prefix_with_the_robot_s_name():
     found = configs()
-    assert len(found) == 15  # the Dock sensor (the docking's state) beside the Dock button
+    assert len(found) == 17  # the Dock sensor beside the Dock button; the Arrival and Run ended events
     for topic in found:
         prefix, component, robot, _obj, config = topic.split("/")
         assert (prefix, robot, config) == ("homeassistant", "robo", "config")
@@ -103,6 +103,14 @@ def test_go_to_shows_the_target_only_while_it_is_one_of_the_places(names):
         assert render(template, dict(STATE, target=name)) == name
     assert render(template, dict(STATE, target="deleted meanwhile")) == "None"
     assert render(template, dict(STATE, target=None)) == "None"
+
+
+def test_arrivals_and_runs_ends_are_event_entities_of_their_own_topics():
+    found = configs()
+    arrival = found["homeassistant/event/robo/arrival/config"]
+    assert arrival["state_topic"] == ROOT + "/event/arrival" and arrival["event_types"] == ["arrived", "failed"]
+    run = found["homeassistant/event/robo/run_ended/config"]
+    assert run["state_topic"] == ROOT + "/event/run" and "canceled" in run["event_types"]
 
 
 def test_discovery_off_removes_every_entity():

@@ -170,6 +170,7 @@ class ServerParts:
         if not cfg.mqtt.enabled:
             return None
         from flask_move_server.mqtt.commands import Commands
+        from flask_move_server.mqtt.ha_events import HaEvents
         from flask_move_server.mqtt.home_assistant import HomeAssistant, device_info
         from flask_move_server.mqtt.identity import broker_name
         from flask_move_server.mqtt.link import MqttLink
@@ -193,6 +194,7 @@ class ServerParts:
                            refused=lambda: commands.refused, battery_heard=home.battery_heard,
                            last_reached=lambda: (happenings.last_reached or {}).get("name"), zones=store.zones)
         happenings.listen(lambda name, data: state.changed())  # a goal's end told at once, not a second later
+        HaEvents(link, happenings)  # an arrival and a run's end as Home Assistant's events
         for part in (home, state):
             stack.callback(part.start().close)
         app.extensions["flask_move_server"]["mqtt"] = link

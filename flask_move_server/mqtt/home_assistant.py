@@ -5,7 +5,7 @@ selects Go to (the active map's waypoints) and Route, buttons Stop, Dock, Pause,
 sensors Status (an enum; its attributes: the sentence, the last refused command, the run), Target,
 Mode and Dock (enums), Map, Last reached, Battery (once the robot has heard one; its config is never
 removed at a start before a reading comes, so the entity an owner renamed stays), the binary sensor
-E-stop latched, and a switch
+E-stop latched, the events Arrival and Run ended (``ha_events.py``), and a switch
 per zone of the active map ("Katzenecke: keep out"; a deleted zone's switch is removed). Every
 entity reads ``<root>/state`` and is available while ``<root>/availability`` says ``online``.
 
@@ -23,6 +23,7 @@ import threading
 from flask_move_server import __version__
 from flask_move_server.dock.docking import STATES as DOCK_STATES
 from flask_move_server.modes.targets import MODES
+from flask_move_server.mqtt.ha_events import ARRIVAL_TYPES, RUN_TYPES, arrival_topic, run_topic
 from flask_move_server.zones import zone_object_id
 
 log = logging.getLogger(__name__)
@@ -86,6 +87,10 @@ def discovery(prefix, root, robot, device, waypoints, routes, battery_known, ena
             "name": "Battery", "device_class": "battery", "unit_of_measurement": "%", "state_class": "measurement",
             "state_topic": state, "value_template": _or_none("value_json.battery.percentage if value_json.battery "
                                                              "else none")}))
+    configs += [("event", "arrival", {"name": "Arrival", "icon": "mdi:map-marker-check",
+                                      "event_types": list(ARRIVAL_TYPES), "state_topic": arrival_topic(root)}),
+                ("event", "run_ended", {"name": "Run ended", "icon": "mdi:flag-checkered",
+                                        "event_types": list(RUN_TYPES), "state_topic": run_topic(root)})]
     configs += [("switch", zone_object_id(zone.name), _zone_switch(root, state, zone)) for zone in zones]
     out = []
     for component, obj, config in configs:
