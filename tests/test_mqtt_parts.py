@@ -40,7 +40,7 @@ def test_every_config_topic_is_under_the_prefix_with_the_robot_s_name():
     for topic in found:
         prefix, component, robot, _obj, config = topic.split("/")
         assert (prefix, robot, config) == ("homeassistant", "robo", "config")
-        assert component in ("select", "button", "sensor", "binary_sensor")
+        assert component in ("select", "button", "sensor", "binary_sensor", "event")
 
 
 def test_names_of_places_in_any_language_stay_as_they_are():
